@@ -1,0 +1,37 @@
+# Two entry points: `make run` (set up, run the flagship scenario) and `make test`.
+PYTHON ?= python3
+VENV ?= .venv
+PY := $(VENV)/bin/python
+STAMP := $(VENV)/.installed-stamp
+FLAGSHIP ?= scenarios/jeffcott_rigid_stator.toml
+OUT ?= results/jeffcott_rigid_stator
+
+.PHONY: setup run test lint format bench clean
+
+setup: $(STAMP)
+
+$(STAMP): pyproject.toml
+	$(PYTHON) -m venv $(VENV)
+	$(PY) -m pip install --quiet --upgrade pip
+	$(PY) -m pip install --quiet -e '.[dev]'
+	touch $(STAMP)
+
+run: $(STAMP)
+	$(VENV)/bin/rubcosim run $(FLAGSHIP) --engine accurate --out $(OUT)
+
+lint: $(STAMP)
+	$(VENV)/bin/ruff check .
+	$(VENV)/bin/ruff format --check .
+
+format: $(STAMP)
+	$(VENV)/bin/ruff format .
+	$(VENV)/bin/ruff check --fix .
+
+test: lint
+	$(PY) -m pytest -n 2 --durations=15
+
+bench: $(STAMP)
+	$(PY) benchmarks/bench_engines.py --out BENCHMARKS_engines.json
+
+clean:
+	rm -rf $(VENV) build results .pytest_cache

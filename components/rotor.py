@@ -1,0 +1,104 @@
+"""Jeffcott rotor: a single disc, or a journal + disc two-mass rotor.
+
+Coordinates: disc centre (x, y) in m, spin speed ``w`` in rad/s in the x->y
+sense, gravity (if any) along -y.  Equations of the single disc::
+
+    m x'' + c x' + k x = m e w^2 cos(w t) + Fx
+    m y'' + c y' + k y = m e w^2 sin(w t) - m g + Fy
+
+The two-mass rotor has a journal (mass ``journal_mass``) that sits in the
+bearing and a disc (mass ``mass``) that carries the unbalance and rubs; the
+shaft (``stiffness``, ``shaft_damping``) connects them.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba as nb
+
+from .parameters import nonnegative, positive, real
+
+_STATE = (
+    real("x0", 0.0, "m", "initial disc displacement along x"),
+    real("y0", 0.0, "m", "initial disc displacement along y"),
+    real("vx0", 0.0, "m/s", "initial disc velocity along x"),
+    real("vy0", 0.0, "m/s", "initial disc velocity along y"),
+)
+
+JEFFCOTT_PARAMS = (
+    positive("mass", None, "kg", "disc mass m"),
+    nonnegative("damping", 0.0, "N s/m", "viscous damping c of the disc to ground"),
+    positive("stiffness", None, "N/m", "shaft stiffness k"),
+    nonnegative("eccentricity", 0.0, "m", "unbalance eccentricity e"),
+    nonnegative("speed", None, "rad/s", "spin speed w (x->y sense)"),
+    nonnegative("gravity", 0.0, "m/s^2", "gravitational acceleration g along -y"),
+    nonnegative("disc_radius", 0.0, "m", "radius Rd of the rubbing surface (slip speed v.t + Rd w)"),
+    *_STATE,
+)
+
+TWO_MASS_PARAMS = (
+    *JEFFCOTT_PARAMS,
+    positive("journal_mass", None, "kg", "journal mass in the bearing"),
+    nonnegative("journal_damping", 0.0, "N s/m", "viscous damping of the journal to ground"),
+    nonnegative("shaft_damping", 0.0, "N s/m", "damping of the shaft between journal and disc"),
+    real("journal_x0", 0.0, "m", "initial journal displacement along x"),
+    real("journal_y0", 0.0, "m", "initial journal displacement along y"),
+    real("journal_vx0", 0.0, "m/s", "initial journal velocity along x"),
+    real("journal_vy0", 0.0, "m/s", "initial journal velocity along y"),
+)
+
+
+@nb.njit(cache=True)
+def unbalance_force(t: float, m: float, e: float, w: float) -> tuple[float, float]:
+    """Rotating unbalance force on the disc, N: m e w^2 (cos wt, sin wt)."""
+    a = m * e * w * w
+    return a * math.cos(w * t), a * math.sin(w * t)
+
+
+@nb.njit(cache=True)
+def jeffcott_force(
+    t: float,
+    x: float,
+    y: float,
+    vx: float,
+    vy: float,
+    m: float,
+    c: float,
+    k: float,
+    e: float,
+    w: float,
+    g: float,
+) -> tuple[float, float]:
+    """All forces on a Jeffcott disc except contact and control, N."""
+    ux, uy = unbalance_force(t, m, e, w)
+    return ux - c * vx - k * x, uy - c * vy - k * y - m * g
+
+
+@nb.njit(cache=True)
+def shaft_force(
+    xd: float,
+    yd: float,
+    vxd: float,
+    vyd: float,
+    xj: float,
+    yj: float,
+    vxj: float,
+    vyj: float,
+    k: float,
+    cs: float,
+) -> tuple[float, float]:
+    """Force of the shaft on the disc, N (the journal feels the opposite)."""
+    return -k * (xd - xj) - cs * (vxd - vxj), -k * (yd - yj) - cs * (vyd - vyj)
+
+
+def free_whirl(mass: float, damping: float, stiffness: float, eccentricity: float, speed: float):
+    """Steady unbalance whirl of a free Jeffcott disc: x = A cos(w t - phase).
+
+    Returns ``(A, phase)`` with A in m and phase in rad (0 <= phase <= pi).
+    """
+    wn = math.sqrt(stiffness / mass)
+    s = speed / wn
+    z = damping / (2.0 * mass * wn)
+    amp = eccentricity * s * s / math.hypot(1.0 - s * s, 2.0 * z * s)
+    return amp, math.atan2(2.0 * z * s, 1.0 - s * s)

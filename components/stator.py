@@ -1,0 +1,207 @@
+"""Stator: rigid impact law, massless penalty contact, elastic casing.
+
+Geometry: stator centred at (x_offset, y_offset) + casing displacement, radial
+clearance ``d``.  For a disc at p, ``dist = |p - c|``, gap ``g = d - dist``
+(positive when open), outward normal ``n = (p - c)/dist`` and tangent
+``t = (-n_y, n_x)`` in the spin sense (x->y).  The slip speed of the disc
+surface over the stator is ``vs = v.t + Rd w``; friction opposes it.
+
+Sign convention for forces: returned forces act on the rotor disc; the casing
+(if any) feels the opposite.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba as nb
+
+from .parameters import nonnegative, positive, real
+
+_GEOMETRY = (
+    positive("clearance", None, "m", "radial clearance d between disc and stator"),
+    real("x_offset", 0.0, "m", "stator centre x0 (offset rotor when nonzero)"),
+    real("y_offset", 0.0, "m", "stator centre y0 (offset rotor when nonzero)"),
+    nonnegative("friction", 0.0, "1", "Coulomb friction coefficient mu"),
+)
+
+RIGID_PARAMS = (
+    *_GEOMETRY,
+    real("restitution", 0.8, "1", "Newton restitution coefficient r", 0.0, 1.0),
+)
+
+ELASTIC_PARAMS = (
+    *_GEOMETRY,
+    positive("contact_stiffness", None, "N/m", "penalty contact stiffness kc"),
+    real(
+        "contact_damping",
+        -1.0,
+        "N s/m",
+        "contact damping cc; negative means derive it from the restitution",
+        -1.0,
+    ),
+    real("restitution", 1.0, "1", "restitution used to derive cc when not given", 0.0, 1.0),
+)
+
+CASING_PARAMS = (
+    *ELASTIC_PARAMS,
+    positive("mass", None, "kg", "casing mass ms"),
+    positive("stiffness", None, "N/m", "casing support stiffness ks"),
+    nonnegative("damping", 0.0, "N s/m", "casing support damping cs"),
+    real("x0", 0.0, "m", "initial casing displacement along x"),
+    real("y0", 0.0, "m", "initial casing displacement along y"),
+    real("vx0", 0.0, "m/s", "initial casing velocity along x"),
+    real("vy0", 0.0, "m/s", "initial casing velocity along y"),
+)
+
+
+@nb.njit(cache=True)
+def contact_geometry(rx: float, ry: float) -> tuple[float, float, float]:
+    """Distance and outward unit normal for the relative position r = p - c.
+
+    At the exact centre the normal is undefined; +x is returned so that the
+    caller never divides by zero (the gap is then the full clearance).
+    """
+    dist = math.hypot(rx, ry)
+    if dist == 0.0:
+        return 0.0, 1.0, 0.0
+    return dist, rx / dist, ry / dist
+
+
+@nb.njit(cache=True)
+def slip_speed(vx: float, vy: float, nx: float, ny: float, rd: float, w: float) -> float:
+    """Slip speed vs = v.t + Rd w of the disc surface over the stator, m/s."""
+    return -vx * ny + vy * nx + rd * w
+
+
+@nb.njit(cache=True)
+def rigid_impact(
+    vx: float,
+    vy: float,
+    nx: float,
+    ny: float,
+    r: float,
+    mu: float,
+    rd: float,
+    w: float,
+) -> tuple[float, float]:
+    """Post-impact disc velocity for a rigid stator at rest.
+
+    Newton's law on the normal (vn+ = -r vn-) and a Coulomb impulse
+    ``mu (1 + r) vn-`` against the slip on the tangent.  The friction impulse
+    may stop the slip but never reverse it (sticking impact), so the impact
+    never feeds energy into the relative motion (vn, vs).  Only an approaching
+    disc (vn- > 0) is changed.
+    """
+    vn = vx * nx + vy * ny
+    if vn <= 0.0:
+        return vx, vy
+    vt = -vx * ny + vy * nx
+    vs = vt + rd * w
+    dvt = mu * (1.0 + r) * vn
+    if abs(vs) <= dvt:
+        vt_new = -rd * w
+    elif vs > 0.0:
+        vt_new = vt - dvt
+    else:
+        vt_new = vt + dvt
+    vn_new = -r * vn
+    return vn_new * nx - vt_new * ny, vn_new * ny + vt_new * nx
+
+
+@nb.njit(cache=True)
+def penalty_contact_force(
+    rx: float,
+    ry: float,
+    rvx: float,
+    rvy: float,
+    d: float,
+    kc: float,
+    cc: float,
+    mu: float,
+    rd: float,
+    w: float,
+) -> tuple[float, float, float]:
+    """Penalty contact force on the disc for relative position/velocity r, rv.
+
+    ``Fn = kc (dist - d) + cc * d(dist)/dt`` when ``dist > d`` (linear
+    Kelvin-Voigt contact, as in the brief; it may pull for a moment before
+    separation, which keeps the restitution of :func:`damping_from_restitution`
+    exact), friction ``mu Fn`` against the slip.  With ``cc = 0`` and positive
+    slip this is the Chu-Zhang force ``-kc (1 - d/e) [rx - mu ry, mu rx + ry]``.
+
+    Returns ``(fx, fy, Fn)``.
+    """
+    dist, nx, ny = contact_geometry(rx, ry)
+    if dist <= d:
+        return 0.0, 0.0, 0.0
+    fn = kc * (dist - d) + cc * (rvx * nx + rvy * ny)
+    vs = slip_speed(rvx, rvy, nx, ny, rd, w)
+    sgn = 1.0 if vs > 0.0 else (-1.0 if vs < 0.0 else 0.0)
+    ft = -mu * fn * sgn
+    return -fn * nx - ft * ny, -fn * ny + ft * nx, fn
+
+
+@nb.njit(cache=True)
+def constraint_normal_force(
+    fx: float,
+    fy: float,
+    nx: float,
+    ny: float,
+    vt: float,
+    vn: float,
+    dist: float,
+    d: float,
+    m: float,
+    omega_b: float,
+) -> float:
+    """Normal force N (>= 0 pushes the disc inward) that keeps ``dist = d``.
+
+    From the radial equation of a disc sliding on the stator under the other
+    forces (fx, fy): ``N = F.n + m vt^2/dist``.  A Baumgarte term
+    ``m (2 omega_b vn + omega_b^2 (dist - d))`` pulls numerical drift back onto
+    the surface; it is zero on the exact constrained motion.
+    """
+    return (
+        fx * nx
+        + fy * ny
+        + m * vt * vt / dist
+        + m * (2.0 * omega_b * vn + omega_b * omega_b * (dist - d))
+    )
+
+
+def damping_from_restitution(restitution: float, stiffness: float, mass: float) -> float:
+    """Contact damping cc, N s/m, giving restitution r for a linear spring-dashpot.
+
+    For a mass ``mass`` hitting a spring-dashpot (kc, cc) the restitution is
+    ``exp(-zeta pi / sqrt(1 - zeta^2))``, ``zeta = cc / (2 sqrt(kc m))``.
+    ``r = 0`` gives critical damping.
+    """
+    if restitution >= 1.0:
+        return 0.0
+    if restitution <= 0.0:
+        zeta = 1.0
+    else:
+        lr = math.log(restitution)
+        zeta = -lr / math.sqrt(math.pi**2 + lr * lr)
+    return 2.0 * zeta * math.sqrt(stiffness * mass)
+
+
+def rub_onset_speed_ratios(damping_ratio: float, eccentricity_ratio: float) -> tuple[float, ...]:
+    """Speed ratios s = w/wn where the free unbalance whirl radius equals the clearance.
+
+    Solves ``(1 - rho^2) u^2 + (4 z^2 - 2) u + 1 = 0``, ``u = s^2``,
+    ``rho = e/d``; returns the positive roots in increasing order (none when
+    the whirl never reaches the stator).
+    """
+    z, rho = damping_ratio, eccentricity_ratio
+    a, b, c = 1.0 - rho * rho, 4.0 * z * z - 2.0, 1.0
+    if a == 0.0:
+        roots = [-c / b] if b != 0.0 else []
+    else:
+        disc = b * b - 4.0 * a * c
+        if disc < 0.0:
+            return ()
+        sq = math.sqrt(disc)
+        roots = [(-b - sq) / (2.0 * a), (-b + sq) / (2.0 * a)]
+    return tuple(sorted(math.sqrt(u) for u in roots if u > 0.0))

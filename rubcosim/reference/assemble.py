@@ -1,0 +1,258 @@
+"""Assemble validated units into one monolithic system (the ``p``/``ip`` arrays)."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from rubcosim.components.bearing import oilfilm_sigma
+from rubcosim.components.catalog import UNIT_TYPES
+from rubcosim.components.oscillator import STOP_KINDS
+from rubcosim.components.parameters import ParameterError, resolve
+from rubcosim.components.stator import damping_from_restitution
+
+from . import system as S
+
+# Relative size of the rebound normal speed (to the system's velocity scale)
+# below which chattering is declared over and the contact becomes sustained.
+DEFAULT_CHATTER_TOL = 1e-6
+
+
+@dataclass
+class Unit:
+    """A unit of a scenario: its role (``rotor``, ``stator``...), type and parameters."""
+
+    role: str
+    type: str
+    params: dict[str, Any]
+
+
+@dataclass
+class System:
+    """A monolithic system ready for either engine."""
+
+    family: int
+    p: np.ndarray
+    ip: np.ndarray
+    y0: np.ndarray
+    mode0: int
+    state_names: list[str]
+    state_scale: np.ndarray
+    output_names: list[str]
+    forcing_period: float
+    velocity_scale: float
+    units: dict[str, Unit] = field(default_factory=dict)
+
+    @property
+    def n_state(self) -> int:
+        return int(self.y0.shape[0])
+
+    @property
+    def has_delay(self) -> bool:
+        return self.family == S.FAMILY_ROTOR and self.ip[S.IP_CONTROL] != S.CONTROL_NONE
+
+    def min_delay(self) -> float:
+        return float(self.p[S.P_TAU0] - self.p[S.P_EPS]) if self.has_delay else math.inf
+
+
+def _is_velocity(state_name: str) -> bool:
+    return state_name.split(".")[1].split("_")[-1].startswith("v")
+
+
+def make_unit(role: str, type_: str, given: Mapping[str, Any]) -> Unit:
+    """Validate one unit's parameters (unknown, missing, wrong type, out of range)."""
+    if role not in UNIT_TYPES:
+        raise ParameterError(f"unit {role!r} is not known (known units: {', '.join(UNIT_TYPES)})")
+    kinds = UNIT_TYPES[role]
+    if type_ not in kinds:
+        raise ParameterError(f"{role}.type = {type_!r} is not one of {', '.join(kinds)}")
+    return Unit(role, type_, resolve(role, kinds[type_], given))
+
+
+def build_system(units: Mapping[str, Unit], chatter_tol: float = DEFAULT_CHATTER_TOL) -> System:
+    """Couple the units by their physical roles into one system.
+
+    The rotor's disc carries the unbalance, the stator contact and the
+    controller force; the bearing acts on the journal of a two-mass rotor.
+    """
+    if "oscillator" in units:
+        extra = sorted(set(units) - {"oscillator"})
+        if extra:
+            raise ParameterError(f"unit {extra[0]!r} cannot be combined with an oscillator")
+        return _oscillator_system(units["oscillator"], chatter_tol)
+    if "rotor" not in units:
+        raise ParameterError("the scenario needs a 'rotor' or an 'oscillator' unit")
+    return _rotor_system(units, chatter_tol)
+
+
+def _oscillator_system(u: Unit, chatter_tol: float) -> System:
+    q = u.params
+    stop = STOP_KINDS.index(q["stop"])
+    two_sided = q["stop"].endswith("two_sided")
+    if two_sided and q["barrier"] <= 0.0:
+        raise ParameterError(f"oscillator.barrier = {q['barrier']!r} must be > 0 for a two-sided stop")
+    if q["stop"].startswith("elastic") and q["stop_stiffness"] <= 0.0:
+        raise ParameterError("oscillator.stop_stiffness must be > 0 for an elastic stop")
+    x0 = q["x0"]
+    if q["stop"].startswith("rigid") and (x0 > q["barrier"] or (two_sided and x0 < -q["barrier"])):
+        raise ParameterError(f"oscillator.x0 = {x0!r} starts beyond the rigid barrier")
+    p = np.zeros(S.N_P)
+    p[S.P_A] = q["linear_stiffness"]
+    p[S.P_B] = q["damping"]
+    p[S.P_C3] = q["cubic_stiffness"]
+    p[S.P_F] = q["forcing_amplitude"]
+    p[S.P_WF] = q["forcing_frequency"]
+    p[S.P_DB] = q["barrier"]
+    p[S.P_RR] = q["restitution"]
+    p[S.P_KSTOP] = q["stop_stiffness"]
+    length = abs(q["barrier"]) if q["barrier"] != 0.0 else 1.0
+    vscale = length * q["forcing_frequency"]
+    p[S.P_VCHAT] = chatter_tol * vscale
+    ip = np.zeros(S.N_IP, dtype=np.int64)
+    ip[S.IP_FAMILY] = S.FAMILY_OSCILLATOR
+    ip[S.IP_NSTATE] = 2
+    ip[S.IP_JOURNAL] = -1
+    ip[S.IP_CASING] = -1
+    ip[S.IP_STOP] = stop
+    return System(
+        family=S.FAMILY_OSCILLATOR,
+        p=p,
+        ip=ip,
+        y0=np.array([q["x0"], q["v0"]]),
+        mode0=S.MODE_FREE,
+        state_names=["oscillator.x", "oscillator.v"],
+        state_scale=np.array([length, vscale]),
+        output_names=S.output_names(ip),
+        forcing_period=2.0 * math.pi / q["forcing_frequency"],
+        velocity_scale=vscale,
+        units={"oscillator": u},
+    )
+
+
+def _rotor_system(units: Mapping[str, Unit], chatter_tol: float) -> System:
+    rotor = units["rotor"]
+    r = rotor.params
+    stator = units.get("stator")
+    bearing = units.get("bearing")
+    controller = units.get("controller")
+    two_mass = rotor.type == "two_mass"
+    if bearing is not None and not two_mass:
+        raise ParameterError("bearing: a bearing needs rotor.type = 'two_mass' (it holds the journal)")
+    if two_mass and bearing is None:
+        raise ParameterError("rotor.type = 'two_mass' needs a 'bearing' unit for its journal")
+    w = r["speed"]
+    if bearing is not None and bearing.type == "oilfilm" and w <= 0.0:
+        raise ParameterError("rotor.speed must be > 0 with an oil-film bearing")
+
+    p = np.zeros(S.N_P)
+    ip = np.zeros(S.N_IP, dtype=np.int64)
+    ip[S.IP_FAMILY] = S.FAMILY_ROTOR
+    p[S.P_M] = r["mass"]
+    p[S.P_C] = r["damping"]
+    p[S.P_K] = r["stiffness"]
+    p[S.P_E] = r["eccentricity"]
+    p[S.P_W] = w
+    p[S.P_G] = r["gravity"]
+    p[S.P_RD] = r["disc_radius"]
+    names = ["rotor.x", "rotor.y", "rotor.vx", "rotor.vy"]
+    y0 = [r["x0"], r["y0"], r["vx0"], r["vy0"]]
+    ip[S.IP_JOURNAL] = -1
+    ip[S.IP_CASING] = -1
+    wn = math.sqrt(r["stiffness"] / r["mass"])
+    length = r["eccentricity"]
+
+    if two_mass:
+        ip[S.IP_ROTOR] = S.ROTOR_TWO_MASS
+        ip[S.IP_JOURNAL] = len(y0)
+        p[S.P_MJ] = r["journal_mass"]
+        p[S.P_CJ] = r["journal_damping"]
+        p[S.P_CSH] = r["shaft_damping"]
+        names += ["rotor.journal_x", "rotor.journal_y", "rotor.journal_vx", "rotor.journal_vy"]
+        y0 += [r["journal_x0"], r["journal_y0"], r["journal_vx0"], r["journal_vy0"]]
+        b = bearing.params
+        if bearing.type == "linear":
+            ip[S.IP_BEARING] = S.BEARING_LINEAR
+            p[S.P_KB] = b["stiffness"]
+            p[S.P_CB] = b["damping"]
+        else:
+            ip[S.IP_BEARING] = S.BEARING_OILFILM
+            p[S.P_CR] = b["clearance"]
+            p[S.P_SIGMA] = oilfilm_sigma(b["viscosity"], w, b["radius"], b["length"], b["clearance"])
+            if math.hypot(r["journal_x0"], r["journal_y0"]) >= b["clearance"]:
+                raise ParameterError("rotor.journal_x0/journal_y0 put the journal outside the bearing clearance")
+            length = max(length, b["clearance"])
+
+    if stator is not None:
+        s = stator.params
+        p[S.P_D] = s["clearance"]
+        p[S.P_X0] = s["x_offset"]
+        p[S.P_Y0] = s["y_offset"]
+        p[S.P_MU] = s["friction"]
+        p[S.P_R] = s["restitution"]
+        length = max(length, s["clearance"])
+        if stator.type == "rigid":
+            ip[S.IP_STATOR] = S.STATOR_RIGID
+            if math.hypot(r["x0"] - s["x_offset"], r["y0"] - s["y_offset"]) > s["clearance"]:
+                raise ParameterError("rotor.x0/rotor.y0 start the disc beyond the rigid stator's clearance")
+        else:
+            ip[S.IP_STATOR] = S.STATOR_ELASTIC if stator.type == "elastic" else S.STATOR_CASING
+            p[S.P_KC] = s["contact_stiffness"]
+            m_eff = r["mass"]
+            if stator.type == "casing":
+                m_eff = r["mass"] * s["mass"] / (r["mass"] + s["mass"])
+                ip[S.IP_CASING] = len(y0)
+                p[S.P_MS] = s["mass"]
+                p[S.P_KS] = s["stiffness"]
+                p[S.P_CSC] = s["damping"]
+                names += ["stator.x", "stator.y", "stator.vx", "stator.vy"]
+                y0 += [s["x0"], s["y0"], s["vx0"], s["vy0"]]
+            cc = s["contact_damping"]
+            p[S.P_CC] = cc if cc >= 0.0 else damping_from_restitution(s["restitution"], s["contact_stiffness"], m_eff)
+
+    if controller is not None:
+        c = controller.params
+        if w <= 0.0 and c["delay"] < 0.0:
+            raise ParameterError("controller.delay_periods needs rotor.speed > 0 (or give controller.delay)")
+        tau0 = c["delay"] if c["delay"] >= 0.0 else c["delay_periods"] * 2.0 * math.pi / w
+        if tau0 <= 0.0:
+            raise ParameterError("controller.delay must be > 0")
+        if c["modulation_amplitude"] >= tau0:
+            raise ParameterError("controller.modulation_amplitude must be smaller than the delay")
+        if c["modulation_amplitude"] * c["modulation_frequency"] >= 1.0:
+            raise ParameterError(
+                "controller.modulation_amplitude * controller.modulation_frequency must be < 1 "
+                "(the delayed time must keep moving forward)"
+            )
+        ip[S.IP_CONTROL] = S.CONTROL_POSITION if c["feedback"] == "position" else S.CONTROL_VELOCITY
+        p[S.P_KCTL] = c["gain"]
+        p[S.P_TAU0] = tau0
+        p[S.P_EPS] = c["modulation_amplitude"]
+        p[S.P_NU] = c["modulation_frequency"]
+        p[S.P_TON] = c["t_on"]
+
+    if length <= 0.0:
+        length = 1e-3
+    omega = max(w, wn)
+    vscale = length * omega
+    p[S.P_VCHAT] = chatter_tol * vscale
+    p[S.P_OMEGA_B] = omega
+    n = len(y0)
+    ip[S.IP_NSTATE] = n
+    scale = np.array([vscale if _is_velocity(nm) else length for nm in names])
+    return System(
+        family=S.FAMILY_ROTOR,
+        p=p,
+        ip=ip,
+        y0=np.array(y0, dtype=float),
+        mode0=S.MODE_FREE,
+        state_names=names,
+        state_scale=scale,
+        output_names=S.output_names(ip),
+        forcing_period=2.0 * math.pi / w if w > 0.0 else 2.0 * math.pi / wn,
+        velocity_scale=vscale,
+        units=dict(units),
+    )

@@ -1,0 +1,228 @@
+"""The ``fast`` engine: an event-driven DOP853 integrator compiled with numba.
+
+The Runge-Kutta step, its error estimate, the step-size controller and the
+initial-step heuristic follow scipy's ``DOP853`` (same coefficients, read from
+scipy), so the two engines take the same steps up to round-off; what is gained
+is the absence of Python in the loop.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba as nb
+import numpy as np
+from scipy.integrate._ivp import dop853_coefficients as _dop
+
+from .core import (
+    C_REJECTED,
+    C_EVAL,
+    C_RESTARTS,
+    C_RHS,
+    C_STATUS,
+    C_STEPS,
+    STATUS_NONFINITE,
+    STATUS_OK,
+    STATUS_STEP_TOO_SMALL,
+    after_step,
+    full_rhs,
+    next_breakpoint,
+    record_point,
+    start_sides,
+)
+from .system import N_DELAYED, N_EVENTS
+
+N_STAGES = _dop.N_STAGES
+A = np.ascontiguousarray(_dop.A)
+B = np.ascontiguousarray(_dop.B)
+C = np.ascontiguousarray(_dop.C)
+E3 = np.ascontiguousarray(_dop.E3)
+E5 = np.ascontiguousarray(_dop.E5)
+D = np.ascontiguousarray(_dop.D)
+N_EXT = _dop.N_STAGES_EXTENDED
+SAFETY = 0.9
+MIN_FACTOR = 0.2
+MAX_FACTOR = 10.0
+ERROR_EXPONENT = -1.0 / 8.0
+
+
+@nb.njit(cache=True)
+def _rms(v):
+    s = 0.0
+    for x in v:
+        s += x * x
+    return math.sqrt(s / v.shape[0])
+
+
+@nb.njit(cache=True)
+def initial_step(t0, y0, f0, t_bound, max_step, rtol, atol, mode, p, ip, hist, yd, cnt):
+    """scipy's ``select_initial_step`` (Hairer, Norsett & Wanner II.4), order 7."""
+    n = y0.shape[0]
+    interval = abs(t_bound - t0)
+    if interval == 0.0:
+        return 0.0
+    scale = atol + np.abs(y0) * rtol
+    d0 = _rms(y0 / scale)
+    d1 = _rms(f0 / scale)
+    if d0 < 1e-5 or d1 < 1e-5:
+        h0 = 1e-6
+    else:
+        h0 = 0.01 * d0 / d1
+    h0 = min(h0, interval)
+    y1 = y0 + h0 * f0
+    f1 = np.empty(n)
+    full_rhs(t0 + h0, y1, mode, p, ip, hist, yd, f1)
+    cnt[C_RHS] += 1
+    d2 = _rms((f1 - f0) / scale) / h0
+    if d1 <= 1e-15 and d2 <= 1e-15:
+        h1 = max(1e-6, h0 * 1e-3)
+    else:
+        h1 = (0.01 / max(d1, d2)) ** (1.0 / 8.0)
+    return min(100.0 * h0, h1, interval, max_step)
+
+
+@nb.njit(cache=True)
+def dense_coefficients(t_old, h, y_old, y_new, f_new, K, mode, p, ip, hist, yd, F, cnt):
+    """DOP853 dense output (scipy's F layout) for the step just taken."""
+    n = y_old.shape[0]
+    ytmp = np.empty(n)
+    for s in range(N_STAGES + 1, N_EXT):
+        for i in range(n):
+            acc = 0.0
+            for j in range(s):
+                acc += A[s, j] * K[j, i]
+            ytmp[i] = y_old[i] + acc * h
+        full_rhs(t_old + C[s] * h, ytmp, mode, p, ip, hist, yd, K[s])
+        cnt[C_RHS] += 1
+    for i in range(n):
+        dy = y_new[i] - y_old[i]
+        F[0, i] = dy
+        F[1, i] = h * K[0, i] - dy
+        F[2, i] = 2.0 * dy - h * (f_new[i] + K[0, i])
+        for r in range(D.shape[0]):
+            acc = 0.0
+            for j in range(N_EXT):
+                acc += D[r, j] * K[j, i]
+            F[3 + r, i] = h * acc
+
+
+@nb.njit(cache=True)
+def rk_step(t, y, f, h, mode, p, ip, hist, yd, K, y_new, f_new, cnt):
+    n = y.shape[0]
+    ytmp = np.empty(n)
+    for i in range(n):
+        K[0, i] = f[i]
+    for s in range(1, N_STAGES):
+        for i in range(n):
+            acc = 0.0
+            for j in range(s):
+                acc += A[s, j] * K[j, i]
+            ytmp[i] = y[i] + acc * h
+        full_rhs(t + C[s] * h, ytmp, mode, p, ip, hist, yd, K[s])
+    for i in range(n):
+        acc = 0.0
+        for j in range(N_STAGES):
+            acc += B[j] * K[j, i]
+        y_new[i] = y[i] + h * acc
+    full_rhs(t + h, y_new, mode, p, ip, hist, yd, f_new)
+    for i in range(n):
+        K[N_STAGES, i] = f_new[i]
+    cnt[C_RHS] += N_STAGES
+
+
+@nb.njit(cache=True)
+def error_norm(K, h, y, y_new, rtol, atol):
+    n = y.shape[0]
+    e5 = 0.0
+    e3 = 0.0
+    for i in range(n):
+        sc = atol[i] + max(abs(y[i]), abs(y_new[i])) * rtol
+        a5 = 0.0
+        a3 = 0.0
+        for j in range(N_STAGES + 1):
+            a5 += E5[j] * K[j, i]
+            a3 += E3[j] * K[j, i]
+        e5 += (a5 / sc) ** 2
+        e3 += (a3 / sc) ** 2
+    if e5 == 0.0 and e3 == 0.0:
+        return 0.0
+    return abs(h) * e5 / math.sqrt((e5 + 0.01 * e3) * n)
+
+
+@nb.njit(cache=True)
+def integrate(y0, mode, t0, t_end, p, ip, rtol, atol, max_step, t_eval, rec, ev_t, ev_kind, ev_slot, ev_mode, ev_y, hist, queue, qmeta, cnt, y_final):
+    """Integrate from t0 to t_end; returns ``(t, mode)`` reached (t < t_end on failure)."""
+    n = y0.shape[0]
+    y = y0.copy()
+    t = t0
+    K = np.empty((N_EXT, n))
+    F = np.empty((7, n))
+    f = np.empty(n)
+    y_new = np.empty(n)
+    f_new = np.empty(n)
+    y_next = np.empty(n)
+    work = np.empty(n)
+    yd = np.empty(N_DELAYED)
+    g_a = np.empty(N_EVENTS)
+    side = np.zeros(N_EVENTS, dtype=np.int64)
+    dirs = np.zeros(N_EVENTS, dtype=np.int64)
+    rates = np.zeros(N_EVENTS, dtype=np.int64)
+    forced_slot, forced_side = -1, 0
+    obuf = np.empty(rec.shape[1])
+    cnt[C_EVAL] = record_point(t, y, mode, p, ip, hist, t_eval, 0, rec, yd, obuf)
+    while t < t_end and cnt[C_STATUS] == STATUS_OK:
+        bound = next_breakpoint(t, t_end, p, ip, queue, qmeta)
+        start_sides(t, y, mode, p, ip, hist, g_a, dirs, rates, side, yd, forced_slot, forced_side)
+        forced_slot = -1
+        full_rhs(t, y, mode, p, ip, hist, yd, f)
+        cnt[C_RHS] += 1
+        cnt[C_RESTARTS] += 1
+        h_abs = initial_step(t, y, f, bound, max_step, rtol, atol, mode, p, ip, hist, yd, cnt)
+        while t < bound and cnt[C_STATUS] == STATUS_OK:
+            min_step = 10.0 * abs(np.nextafter(t, np.inf) - t)
+            if h_abs > max_step:
+                h_abs = max_step
+            elif h_abs < min_step:
+                h_abs = min_step
+            rejected = False
+            while True:
+                if h_abs < min_step:
+                    cnt[C_STATUS] = STATUS_STEP_TOO_SMALL
+                    break
+                t_new = t + h_abs
+                if t_new > bound:
+                    t_new = bound
+                h = t_new - t
+                h_abs = abs(h)
+                rk_step(t, y, f, h, mode, p, ip, hist, yd, K, y_new, f_new, cnt)
+                err = error_norm(K, h, y, y_new, rtol, atol)
+                if not math.isfinite(err):
+                    cnt[C_STATUS] = STATUS_NONFINITE
+                    break
+                if err < 1.0:
+                    if err == 0.0:
+                        factor = MAX_FACTOR
+                    else:
+                        factor = min(MAX_FACTOR, SAFETY * err**ERROR_EXPONENT)
+                    if rejected:
+                        factor = min(1.0, factor)
+                    h_abs *= factor
+                    break
+                h_abs *= max(MIN_FACTOR, SAFETY * err**ERROR_EXPONENT)
+                rejected = True
+                cnt[C_REJECTED] += 1
+            if cnt[C_STATUS] != STATUS_OK:
+                break
+            cnt[C_STEPS] += 1
+            dense_coefficients(t, h, y, y_new, f_new, K, mode, p, ip, hist, yd, F, cnt)
+            t_next, mode_next, fs, fside = after_step(t, t_new, y, y_new, F, mode, p, ip, hist, queue, qmeta, g_a, side, dirs, rates, t_eval, rec, ev_t, ev_kind, ev_slot, ev_mode, ev_y, cnt, y_next, work)
+            y[:] = y_next
+            t = t_next
+            if fs >= 0 or mode_next != mode:
+                mode = mode_next
+                forced_slot, forced_side = fs, fside
+                break
+            for i in range(n):
+                f[i] = f_new[i]
+    y_final[:] = y
+    return t, mode

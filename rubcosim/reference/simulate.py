@@ -1,0 +1,170 @@
+"""Run an assembled system with either engine and collect the result."""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from . import accurate, fast
+from .assemble import System
+from .core import (
+    C_EVENTS,
+    C_IMPACTS,
+    C_REJECTED,
+    C_RESTARTS,
+    C_RHS,
+    C_STATUS,
+    C_STEPS,
+    HM_OVERFLOW,
+    N_COUNTERS,
+    Q_DROPPED,
+    STATUS_HISTORY_OVERFLOW,
+    STATUS_MESSAGES,
+    STATUS_OK,
+    new_history,
+)
+from .system import KIND_NAMES
+
+ENGINES = {"fast": fast.integrate, "accurate": accurate.integrate}
+# scipy refuses tolerances tighter than 100 machine epsilons.
+MIN_RTOL = 100 * np.finfo(float).eps
+
+
+@dataclass
+class Events:
+    """Every event in order: time, kind (see ``KIND_NAMES``), slot, mode after, state after."""
+
+    t: np.ndarray
+    kind: np.ndarray
+    slot: np.ndarray
+    mode: np.ndarray
+    state: np.ndarray
+
+    def of_kind(self, name: str) -> np.ndarray:
+        """Indices of the events of one kind, e.g. ``"impact"``."""
+        return np.flatnonzero(self.kind == KIND_NAMES.index(name))
+
+
+@dataclass
+class Result:
+    engine: str
+    t: np.ndarray
+    outputs: np.ndarray
+    output_names: list[str]
+    events: Events
+    status: int
+    message: str
+    t_reached: float
+    final_state: np.ndarray
+    final_mode: int
+    counters: dict[str, int] = field(default_factory=dict)
+    wall_time_s: float = 0.0
+
+    @property
+    def ok(self) -> bool:
+        return self.status == STATUS_OK
+
+    def output(self, name: str) -> np.ndarray:
+        """One recorded output by name, e.g. ``"rotor.x"``."""
+        return self.outputs[:, self.output_names.index(name)]
+
+
+def output_grid(t_start: float, t_end: float, step: float) -> np.ndarray:
+    """Uniform grid from t_start to t_end inclusive (the last point is t_end)."""
+    n = int(math.floor((t_end - t_start) / step + 1e-9))
+    grid = t_start + step * np.arange(n + 1)
+    if grid[-1] < t_end - 1e-12 * max(1.0, abs(t_end)):
+        grid = np.append(grid, t_end)
+    return grid
+
+
+def simulate(
+    system: System,
+    t_end: float,
+    *,
+    t_start: float = 0.0,
+    t_eval: np.ndarray | None = None,
+    output_step: float | None = None,
+    engine: str = "fast",
+    rtol: float = 1e-10,
+    atol: float | None = None,
+    max_events: int = 100_000,
+    max_step: float = math.inf,
+    history_capacity: int = 4096,
+) -> Result:
+    """Integrate ``system`` from ``t_start`` to ``t_end``.
+
+    ``atol`` is relative to each state's characteristic size
+    (``system.state_scale``: clearance for displacements, clearance times
+    speed for velocities); it defaults to ``rtol``.  Outputs are recorded at
+    ``t_eval`` (sorted), or on a uniform grid of ``output_step``.
+    """
+    if engine not in ENGINES:
+        raise ValueError(f"engine = {engine!r} is not one of {', '.join(ENGINES)}")
+    if not t_end > t_start:
+        raise ValueError(f"sim.t_end = {t_end!r} must be greater than sim.t_start = {t_start!r}")
+    if not MIN_RTOL <= rtol < 1.0:
+        raise ValueError(f"sim.rtol = {rtol!r} is outside [{MIN_RTOL:.3g}, 1)")
+    atol_rel = rtol if atol is None else atol
+    if not atol_rel > 0.0:
+        raise ValueError(f"sim.atol = {atol!r} must be > 0")
+    if t_eval is None:
+        step = output_step if output_step is not None else (t_end - t_start) / 1000.0
+        t_eval = output_grid(t_start, t_end, step)
+    t_eval = np.ascontiguousarray(t_eval, dtype=float)
+    max_step = min(max_step, system.min_delay())
+    atol_arr = atol_rel * system.state_scale
+    integrate = ENGINES[engine]
+    n = system.n_state
+    capacity = history_capacity
+    while True:
+        rec = np.full((t_eval.shape[0], len(system.output_names)), np.nan)
+        ev_t = np.zeros(max_events)
+        ev_kind = np.zeros(max_events, dtype=np.int64)
+        ev_slot = np.zeros(max_events, dtype=np.int64)
+        ev_mode = np.zeros(max_events, dtype=np.int64)
+        ev_y = np.zeros((max_events, n))
+        hist = new_history(capacity if system.has_delay else 1, t_start, system.y0)
+        queue = np.zeros(capacity if system.has_delay else 1)
+        qmeta = np.zeros(3, dtype=np.int64)
+        cnt = np.zeros(N_COUNTERS, dtype=np.int64)
+        y_final = np.empty(n)
+        t0 = time.perf_counter()
+        t_reached, mode = integrate(system.y0.copy(), system.mode0, t_start, t_end, system.p, system.ip, rtol, atol_arr, max_step, t_eval, rec, ev_t, ev_kind, ev_slot, ev_mode, ev_y, hist, queue, qmeta, cnt, y_final)
+        wall = time.perf_counter() - t0
+        if hist[5][HM_OVERFLOW] and cnt[C_STATUS] == STATUS_OK:
+            cnt[C_STATUS] = STATUS_HISTORY_OVERFLOW
+        if cnt[C_STATUS] == STATUS_HISTORY_OVERFLOW and capacity < 1 << 22:
+            capacity *= 8
+            continue
+        break
+    n_ev = min(int(cnt[C_EVENTS]), max_events)
+    status = int(cnt[C_STATUS])
+    message = STATUS_MESSAGES[status]
+    if status != STATUS_OK:
+        message = f"{message} (t = {t_reached:.9g})"
+    return Result(
+        engine=engine,
+        t=t_eval,
+        outputs=rec,
+        output_names=list(system.output_names),
+        events=Events(ev_t[:n_ev], ev_kind[:n_ev], ev_slot[:n_ev], ev_mode[:n_ev], ev_y[:n_ev]),
+        status=status,
+        message=message,
+        t_reached=float(t_reached),
+        final_state=y_final,
+        final_mode=int(mode),
+        counters={
+            "steps": int(cnt[C_STEPS]),
+            "rejected_steps": int(cnt[C_REJECTED]),
+            "rhs_evaluations": int(cnt[C_RHS]),
+            "restarts": int(cnt[C_RESTARTS]),
+            "events": int(cnt[C_EVENTS]),
+            "impacts": int(cnt[C_IMPACTS]),
+            "delay_breakpoints_dropped": int(qmeta[Q_DROPPED]),
+        },
+        wall_time_s=wall,
+    )

@@ -1,0 +1,501 @@
+"""One assembled system: right-hand side, event functions, event maps, outputs.
+
+A system is described by two arrays built by :mod:`rubcosim.reference.assemble`:
+``ip`` (integers: family, which units, state offsets) and ``p`` (reals: every
+parameter in SI units).  The functions here dispatch on them and call the
+kernels of :mod:`rubcosim.components`; they are compiled once with numba and
+shared by both engines, so the ``fast`` and ``accurate`` engines differ only in
+how they take a Runge-Kutta step.
+
+Families
+--------
+``FAMILY_ROTOR``: disc (x, y, vx, vy) [+ journal] [+ casing]; stator none,
+rigid, elastic or casing; bearing none, linear or oil film (two-mass rotor);
+delayed-feedback controller on the disc.
+``FAMILY_OSCILLATOR``: single-DOF impact oscillator (x, v).
+
+Discrete modes
+--------------
+Rotor with rigid stator: ``MODE_FREE``, ``MODE_SLIDE_POS`` / ``MODE_SLIDE_NEG``
+(sustained contact, slip speed positive / negative), ``MODE_STICK`` (sustained
+contact without slip: the disc rolls on the stator).  Oscillator:
+``MODE_FREE``, ``MODE_STUCK_UPPER``, ``MODE_STUCK_LOWER``.
+
+Event slots
+-----------
+Four slots.  ``dirs[k]``: 0 not an event, -1 fires when g goes from > 0 to
+<= 0, +1 the reverse, 2 either way (a breakpoint).  ``rates[k] = j`` says
+slot j holds dg_k/dt, used to find grazing contacts inside a step.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba as nb
+import numpy as np
+
+from rubcosim.components.bearing import linear_bearing_force, oilfilm_force
+from rubcosim.components.controller import delay_at, feedback_force
+from rubcosim.components.oscillator import (
+    STOP_ELASTIC_ONE,
+    STOP_ELASTIC_TWO,
+    STOP_NONE,
+    STOP_RIGID_ONE,
+    STOP_RIGID_TWO,
+    elastic_stop_force,
+    free_acceleration,
+    impact_velocity,
+)
+from rubcosim.components.rotor import jeffcott_force, shaft_force
+from rubcosim.components.stator import (
+    constraint_normal_force,
+    contact_geometry,
+    penalty_contact_force,
+    rigid_impact,
+    slip_speed,
+)
+
+FAMILY_ROTOR = 0
+FAMILY_OSCILLATOR = 1
+
+# ip layout
+IP_FAMILY = 0
+IP_ROTOR = 1  # 0 jeffcott, 1 two-mass
+IP_STATOR = 2  # 0 none, 1 rigid, 2 elastic, 3 casing
+IP_BEARING = 3  # 0 none, 1 linear, 2 oil film
+IP_CONTROL = 4  # 0 none, 1 position feedback, 2 velocity feedback
+IP_NSTATE = 5
+IP_JOURNAL = 6  # state offset of the journal, -1 if none
+IP_CASING = 7  # state offset of the casing, -1 if none
+IP_STOP = 8  # oscillator stop kind
+N_IP = 9
+
+ROTOR_JEFFCOTT, ROTOR_TWO_MASS = 0, 1
+STATOR_NONE, STATOR_RIGID, STATOR_ELASTIC, STATOR_CASING = 0, 1, 2, 3
+BEARING_NONE, BEARING_LINEAR, BEARING_OILFILM = 0, 1, 2
+CONTROL_NONE, CONTROL_POSITION, CONTROL_VELOCITY = 0, 1, 2
+
+# p layout, rotor family
+P_M, P_C, P_K, P_E, P_W, P_G, P_RD = 0, 1, 2, 3, 4, 5, 6
+P_MJ, P_CJ, P_CSH = 7, 8, 9
+P_D, P_X0, P_Y0, P_R, P_MU, P_KC, P_CC = 10, 11, 12, 13, 14, 15, 16
+P_MS, P_KS, P_CSC = 17, 18, 19
+P_KB, P_CB, P_SIGMA, P_CR = 20, 21, 22, 23
+P_KCTL, P_TAU0, P_EPS, P_NU, P_TON = 24, 25, 26, 27, 28
+# p layout, oscillator family
+P_A, P_B, P_C3, P_F, P_WF, P_DB, P_RR, P_KSTOP = 0, 1, 2, 3, 4, 5, 6, 7
+# shared
+P_VCHAT = 29  # normal speed below which a rebound counts as settled (chattering ends), m/s
+P_OMEGA_B = 30  # Baumgarte rate of the sustained-contact constraint, rad/s
+N_P = 32
+
+MODE_FREE = 0
+MODE_SLIDE_POS = 1
+MODE_SLIDE_NEG = 2
+MODE_STICK = 3
+MODE_STUCK_UPPER = 1
+MODE_STUCK_LOWER = 2
+
+N_EVENTS = 4
+N_DELAYED = 4  # the controller feeds back the disc state (x, y, vx, vy)
+
+KIND_BREAK = 0
+KIND_IMPACT = 1
+KIND_RELEASE = 2
+KIND_SLIP = 3
+KIND_CONTACT_ON = 4
+KIND_CONTACT_OFF = 5
+KIND_NAMES = ("breakpoint", "impact", "release", "slip", "contact_on", "contact_off")
+
+
+@nb.njit(cache=True)
+def control_active(t: float, p: np.ndarray, ip: np.ndarray) -> bool:
+    return ip[IP_FAMILY] == FAMILY_ROTOR and ip[IP_CONTROL] != CONTROL_NONE and t >= p[P_TON]
+
+
+@nb.njit(cache=True)
+def current_delay(t: float, p: np.ndarray) -> float:
+    return delay_at(t, p[P_TAU0], p[P_EPS], p[P_NU])
+
+
+@nb.njit(cache=True)
+def control_force(t: float, y: np.ndarray, yd: np.ndarray, p: np.ndarray, ip: np.ndarray):
+    """Controller force on the disc, N (zero before t_on)."""
+    if not control_active(t, p, ip):
+        return 0.0, 0.0
+    if ip[IP_CONTROL] == CONTROL_POSITION:
+        return feedback_force(p[P_KCTL], y[0], yd[0]), feedback_force(p[P_KCTL], y[1], yd[1])
+    return feedback_force(p[P_KCTL], y[2], yd[2]), feedback_force(p[P_KCTL], y[3], yd[3])
+
+
+@nb.njit(cache=True)
+def disc_external_force(t: float, y: np.ndarray, yd: np.ndarray, p: np.ndarray, ip: np.ndarray):
+    """Every force on the disc except the stator contact, N."""
+    x, yy, vx, vy = y[0], y[1], y[2], y[3]
+    if ip[IP_ROTOR] == ROTOR_TWO_MASS:
+        fx, fy = jeffcott_force(t, x, yy, vx, vy, p[P_M], p[P_C], 0.0, p[P_E], p[P_W], p[P_G])
+        j = ip[IP_JOURNAL]
+        sx, sy = shaft_force(x, yy, vx, vy, y[j], y[j + 1], y[j + 2], y[j + 3], p[P_K], p[P_CSH])
+        fx += sx
+        fy += sy
+    else:
+        fx, fy = jeffcott_force(t, x, yy, vx, vy, p[P_M], p[P_C], p[P_K], p[P_E], p[P_W], p[P_G])
+    ux, uy = control_force(t, y, yd, p, ip)
+    return fx + ux, fy + uy
+
+
+@nb.njit(cache=True)
+def stator_centre(y: np.ndarray, p: np.ndarray, ip: np.ndarray):
+    """Stator centre position and velocity (the casing moves it)."""
+    c = ip[IP_CASING]
+    if c >= 0:
+        return p[P_X0] + y[c], p[P_Y0] + y[c + 1], y[c + 2], y[c + 3]
+    return p[P_X0], p[P_Y0], 0.0, 0.0
+
+
+@nb.njit(cache=True)
+def sustained_contact_force(t, y, yd, mode, p, ip):
+    """Contact force (fx, fy, N) of a rigid stator on a disc in sustained contact."""
+    fx, fy = disc_external_force(t, y, yd, p, ip)
+    dist, nx, ny = contact_geometry(y[0] - p[P_X0], y[1] - p[P_Y0])
+    vn = y[2] * nx + y[3] * ny
+    vt = -y[2] * ny + y[3] * nx
+    n = constraint_normal_force(fx, fy, nx, ny, vt, vn, dist, p[P_D], p[P_M], p[P_OMEGA_B])
+    if mode == MODE_SLIDE_POS:
+        ft = -p[P_MU] * n
+    elif mode == MODE_SLIDE_NEG:
+        ft = p[P_MU] * n
+    else:  # stick: friction holds the slip at zero
+        ft = fx * ny - fy * nx
+    return -n * nx - ft * ny, -n * ny + ft * nx, n
+
+
+@nb.njit(cache=True)
+def contact_force(t, y, yd, mode, p, ip):
+    """Stator contact force on the disc (fx, fy) and its normal part, N."""
+    kind = ip[IP_STATOR]
+    if kind == STATOR_RIGID:
+        if mode == MODE_FREE:
+            return 0.0, 0.0, 0.0
+        return sustained_contact_force(t, y, yd, mode, p, ip)
+    if kind == STATOR_ELASTIC or kind == STATOR_CASING:
+        cx, cy, cvx, cvy = stator_centre(y, p, ip)
+        return penalty_contact_force(
+            y[0] - cx,
+            y[1] - cy,
+            y[2] - cvx,
+            y[3] - cvy,
+            p[P_D],
+            p[P_KC],
+            p[P_CC],
+            p[P_MU],
+            p[P_RD],
+            p[P_W],
+        )
+    return 0.0, 0.0, 0.0
+
+
+@nb.njit(cache=True)
+def bearing_force(y: np.ndarray, p: np.ndarray, ip: np.ndarray):
+    j = ip[IP_JOURNAL]
+    if j < 0 or ip[IP_BEARING] == BEARING_NONE:
+        return 0.0, 0.0
+    if ip[IP_BEARING] == BEARING_LINEAR:
+        return linear_bearing_force(y[j], y[j + 1], y[j + 2], y[j + 3], p[P_KB], p[P_CB])
+    return oilfilm_force(y[j], y[j + 1], y[j + 2], y[j + 3], p[P_W], p[P_CR], p[P_SIGMA])
+
+
+@nb.njit(cache=True)
+def rotor_rhs(t, y, yd, mode, p, ip, dy):
+    fx, fy = disc_external_force(t, y, yd, p, ip)
+    cfx, cfy, _ = contact_force(t, y, yd, mode, p, ip)
+    m = p[P_M]
+    dy[0] = y[2]
+    dy[1] = y[3]
+    dy[2] = (fx + cfx) / m
+    dy[3] = (fy + cfy) / m
+    j = ip[IP_JOURNAL]
+    if j >= 0:
+        sx, sy = shaft_force(y[0], y[1], y[2], y[3], y[j], y[j + 1], y[j + 2], y[j + 3], p[P_K], p[P_CSH])
+        bx, by = bearing_force(y, p, ip)
+        mj = p[P_MJ]
+        dy[j] = y[j + 2]
+        dy[j + 1] = y[j + 3]
+        dy[j + 2] = (-sx + bx - p[P_CJ] * y[j + 2]) / mj
+        dy[j + 3] = (-sy + by - p[P_CJ] * y[j + 3]) / mj - p[P_G]
+    c = ip[IP_CASING]
+    if c >= 0:
+        ms = p[P_MS]
+        dy[c] = y[c + 2]
+        dy[c + 1] = y[c + 3]
+        dy[c + 2] = (-cfx - p[P_KS] * y[c] - p[P_CSC] * y[c + 2]) / ms
+        dy[c + 3] = (-cfy - p[P_KS] * y[c + 1] - p[P_CSC] * y[c + 3]) / ms
+
+
+@nb.njit(cache=True)
+def oscillator_rhs(t, y, mode, p, ip, dy):
+    if mode != MODE_FREE:
+        dy[0] = 0.0
+        dy[1] = 0.0
+        return
+    acc = free_acceleration(t, y[0], y[1], p[P_A], p[P_B], p[P_C3], p[P_F], p[P_WF])
+    acc += elastic_stop_force(y[0], ip[IP_STOP], p[P_DB], p[P_KSTOP])
+    dy[0] = y[1]
+    dy[1] = acc
+
+
+@nb.njit(cache=True)
+def rhs(t, y, yd, mode, p, ip, dy):
+    """dy/dt for the system in ``mode``; ``yd`` is the delayed disc state."""
+    if ip[IP_FAMILY] == FAMILY_ROTOR:
+        rotor_rhs(t, y, yd, mode, p, ip, dy)
+    else:
+        oscillator_rhs(t, y, mode, p, ip, dy)
+
+
+@nb.njit(cache=True)
+def rotor_events(t, y, yd, mode, p, ip, g, dirs, rates):
+    kind = ip[IP_STATOR]
+    if kind == STATOR_NONE:
+        return
+    cx, cy, cvx, cvy = stator_centre(y, p, ip)
+    dist, nx, ny = contact_geometry(y[0] - cx, y[1] - cy)
+    vn = (y[2] - cvx) * nx + (y[3] - cvy) * ny
+    if kind != STATOR_RIGID or mode == MODE_FREE:
+        g[0] = p[P_D] - dist
+        g[1] = -vn
+        dirs[0] = -1 if kind == STATOR_RIGID else 2
+        rates[0] = 1
+        return
+    fx, fy = disc_external_force(t, y, yd, p, ip)
+    vt = -y[2] * ny + y[3] * nx
+    n = constraint_normal_force(fx, fy, nx, ny, vt, vn, dist, p[P_D], p[P_M], p[P_OMEGA_B])
+    g[0] = n
+    dirs[0] = -1
+    if mode == MODE_STICK:
+        g[1] = p[P_MU] * n - abs(-fx * ny + fy * nx)
+        dirs[1] = -1
+    else:
+        g[1] = slip_speed(y[2], y[3], nx, ny, p[P_RD], p[P_W])
+        dirs[1] = -1 if mode == MODE_SLIDE_POS else 1
+
+
+@nb.njit(cache=True)
+def oscillator_events(t, y, mode, p, ip, g, dirs, rates):
+    stop = ip[IP_STOP]
+    if stop == STOP_NONE:
+        return
+    D = p[P_DB]
+    if mode == MODE_STUCK_UPPER:
+        g[0] = free_acceleration(t, D, 0.0, p[P_A], p[P_B], p[P_C3], p[P_F], p[P_WF])
+        dirs[0] = -1
+        return
+    if mode == MODE_STUCK_LOWER:
+        g[2] = -free_acceleration(t, -D, 0.0, p[P_A], p[P_B], p[P_C3], p[P_F], p[P_WF])
+        dirs[2] = -1
+        return
+    rigid = stop == STOP_RIGID_ONE or stop == STOP_RIGID_TWO
+    g[0] = D - y[0]
+    g[1] = -y[1]
+    dirs[0] = -1 if rigid else 2
+    rates[0] = 1
+    if stop == STOP_RIGID_TWO or stop == STOP_ELASTIC_TWO:
+        g[2] = y[0] + D
+        g[3] = y[1]
+        dirs[2] = -1 if rigid else 2
+        rates[2] = 3
+
+
+@nb.njit(cache=True)
+def events(t, y, yd, mode, p, ip, g, dirs, rates):
+    """Fill the event functions ``g``, their directions and rate companions."""
+    for k in range(N_EVENTS):
+        g[k] = 1.0
+        dirs[k] = 0
+        rates[k] = -1
+    if ip[IP_FAMILY] == FAMILY_ROTOR:
+        rotor_events(t, y, yd, mode, p, ip, g, dirs, rates)
+    else:
+        oscillator_events(t, y, mode, p, ip, g, dirs, rates)
+
+
+@nb.njit(cache=True)
+def settle_contact(t, y, yd, p, ip, n_force):
+    """Mode of a disc that has come to rest in the normal direction on a rigid stator."""
+    dist, nx, ny = contact_geometry(y[0] - p[P_X0], y[1] - p[P_Y0])
+    vs = slip_speed(y[2], y[3], nx, ny, p[P_RD], p[P_W])
+    if abs(vs) > p[P_VCHAT]:
+        return MODE_SLIDE_POS if vs > 0.0 else MODE_SLIDE_NEG
+    fx, fy = disc_external_force(t, y, yd, p, ip)
+    ft = -fx * ny + fy * nx
+    if abs(ft) <= p[P_MU] * n_force:
+        # Rolling without slip: the tangential speed is exactly -Rd w.
+        vt = -p[P_RD] * p[P_W]
+        y[2] = -vt * ny
+        y[3] = vt * nx
+        return MODE_STICK
+    return MODE_SLIDE_POS if ft > 0.0 else MODE_SLIDE_NEG
+
+
+@nb.njit(cache=True)
+def rotor_apply(k, t, y, yd, mode, p, ip):
+    kind = ip[IP_STATOR]
+    if kind != STATOR_RIGID:
+        cx, cy, cvx, cvy = stator_centre(y, p, ip)
+        dist, nx, ny = contact_geometry(y[0] - cx, y[1] - cy)
+        vn = (y[2] - cvx) * nx + (y[3] - cvy) * ny
+        return mode, KIND_CONTACT_ON if vn > 0.0 else KIND_CONTACT_OFF
+    if mode == MODE_FREE:
+        d = p[P_D]
+        dist, nx, ny = contact_geometry(y[0] - p[P_X0], y[1] - p[P_Y0])
+        # The event locator leaves the disc within round-off of the stator: put it on it.
+        y[0] = p[P_X0] + d * nx
+        y[1] = p[P_Y0] + d * ny
+        vx, vy = rigid_impact(y[2], y[3], nx, ny, p[P_R], p[P_MU], p[P_RD], p[P_W])
+        vn = vx * nx + vy * ny
+        y[2] = vx
+        y[3] = vy
+        if -vn >= p[P_VCHAT]:
+            return MODE_FREE, KIND_IMPACT
+        # The rebound is too small to leave: chattering has ended.
+        y[2] = vx - vn * nx
+        y[3] = vy - vn * ny
+        fx, fy = disc_external_force(t, y, yd, p, ip)
+        vt = -y[2] * ny + y[3] * nx
+        n = constraint_normal_force(fx, fy, nx, ny, vt, 0.0, d, d, p[P_M], 0.0)
+        if n > 0.0:
+            return settle_contact(t, y, yd, p, ip, n), KIND_IMPACT
+        return MODE_FREE, KIND_IMPACT
+    if k == 0:
+        return MODE_FREE, KIND_RELEASE
+    # Slip speed reached zero while sliding, or friction can no longer hold while sticking.
+    dist, nx, ny = contact_geometry(y[0] - p[P_X0], y[1] - p[P_Y0])
+    fx, fy = disc_external_force(t, y, yd, p, ip)
+    vn = y[2] * nx + y[3] * ny
+    vt = -y[2] * ny + y[3] * nx
+    n = constraint_normal_force(fx, fy, nx, ny, vt, vn, dist, p[P_D], p[P_M], p[P_OMEGA_B])
+    ft = -fx * ny + fy * nx
+    if mode != MODE_STICK and abs(ft) <= p[P_MU] * n:
+        return settle_contact(t, y, yd, p, ip, n), KIND_SLIP
+    new_mode = MODE_SLIDE_POS if ft > 0.0 else MODE_SLIDE_NEG
+    if new_mode == mode:
+        # Round-off put us back in the same sliding direction: hold the slip instead.
+        return MODE_STICK, KIND_SLIP
+    return new_mode, KIND_SLIP
+
+
+@nb.njit(cache=True)
+def oscillator_apply(k, t, y, mode, p, ip):
+    stop = ip[IP_STOP]
+    D = p[P_DB]
+    if stop == STOP_ELASTIC_ONE or stop == STOP_ELASTIC_TWO:
+        entering = y[1] > 0.0 if k == 0 else y[1] < 0.0
+        return mode, KIND_CONTACT_ON if entering else KIND_CONTACT_OFF
+    if mode != MODE_FREE:
+        return MODE_FREE, KIND_RELEASE
+    side = 1.0 if k == 0 else -1.0
+    y[0] = side * D
+    y[1] = impact_velocity(y[1], p[P_RR])
+    if abs(y[1]) >= p[P_VCHAT]:
+        return MODE_FREE, KIND_IMPACT
+    y[1] = 0.0
+    acc = free_acceleration(t, y[0], 0.0, p[P_A], p[P_B], p[P_C3], p[P_F], p[P_WF])
+    if side * acc > 0.0:
+        return (MODE_STUCK_UPPER if k == 0 else MODE_STUCK_LOWER), KIND_IMPACT
+    return MODE_FREE, KIND_IMPACT
+
+
+@nb.njit(cache=True)
+def apply_event(k, t, y, yd, mode, p, ip):
+    """Apply the event of slot ``k`` at time t: may change y in place.
+
+    Returns ``(new_mode, kind)``.
+    """
+    if ip[IP_FAMILY] == FAMILY_ROTOR:
+        return rotor_apply(k, t, y, yd, mode, p, ip)
+    return oscillator_apply(k, t, y, mode, p, ip)
+
+
+@nb.njit(cache=True)
+def n_outputs(ip: np.ndarray) -> int:
+    if ip[IP_FAMILY] == FAMILY_OSCILLATOR:
+        return 3
+    n = 4
+    if ip[IP_JOURNAL] >= 0:
+        n += 4
+    if ip[IP_STATOR] != STATOR_NONE:
+        n += 3
+    if ip[IP_CASING] >= 0:
+        n += 4
+    if ip[IP_BEARING] != BEARING_NONE:
+        n += 2
+    if ip[IP_CONTROL] != CONTROL_NONE:
+        n += 2
+    return n
+
+
+def output_names(ip: np.ndarray) -> list[str]:
+    """Names of the outputs written by :func:`outputs`, in the same order."""
+    if ip[IP_FAMILY] == FAMILY_OSCILLATOR:
+        return ["oscillator.x", "oscillator.v", "oscillator.contact"]
+    names = ["rotor.x", "rotor.y", "rotor.vx", "rotor.vy"]
+    if ip[IP_JOURNAL] >= 0:
+        names += ["rotor.journal_x", "rotor.journal_y", "rotor.journal_vx", "rotor.journal_vy"]
+    if ip[IP_STATOR] != STATOR_NONE:
+        names += ["stator.gap", "stator.normal_force", "stator.contact"]
+    if ip[IP_CASING] >= 0:
+        names += ["stator.x", "stator.y", "stator.vx", "stator.vy"]
+    if ip[IP_BEARING] != BEARING_NONE:
+        names += ["bearing.fx", "bearing.fy"]
+    if ip[IP_CONTROL] != CONTROL_NONE:
+        names += ["controller.ux", "controller.uy"]
+    return names
+
+
+@nb.njit(cache=True)
+def outputs(t, y, yd, mode, p, ip, out):
+    """Recorded outputs (see :func:`output_names`); ``stator.contact`` and
+    ``oscillator.contact`` are 0 free, 1 in contact or sliding, 2 sticking."""
+    if ip[IP_FAMILY] == FAMILY_OSCILLATOR:
+        out[0] = y[0]
+        out[1] = y[1]
+        out[2] = 0.0 if mode == MODE_FREE else 2.0
+        stop = ip[IP_STOP]
+        if (stop == STOP_ELASTIC_ONE or stop == STOP_ELASTIC_TWO) and (
+            y[0] > p[P_DB] or (stop == STOP_ELASTIC_TWO and y[0] < -p[P_DB])
+        ):
+            out[2] = 1.0
+        return
+    for i in range(4):
+        out[i] = y[i]
+    i = 4
+    j = ip[IP_JOURNAL]
+    if j >= 0:
+        for q in range(4):
+            out[i + q] = y[j + q]
+        i += 4
+    if ip[IP_STATOR] != STATOR_NONE:
+        cx, cy, _, _ = stator_centre(y, p, ip)
+        out[i] = p[P_D] - math.hypot(y[0] - cx, y[1] - cy)
+        _, _, n = contact_force(t, y, yd, mode, p, ip)
+        out[i + 1] = n
+        if ip[IP_STATOR] == STATOR_RIGID:
+            out[i + 2] = 0.0 if mode == MODE_FREE else (2.0 if mode == MODE_STICK else 1.0)
+        else:
+            out[i + 2] = 1.0 if out[i] < 0.0 else 0.0
+        i += 3
+    c = ip[IP_CASING]
+    if c >= 0:
+        for q in range(4):
+            out[i + q] = y[c + q]
+        i += 4
+    if ip[IP_BEARING] != BEARING_NONE:
+        bx, by = bearing_force(y, p, ip)
+        out[i] = bx
+        out[i + 1] = by
+        i += 2
+    if ip[IP_CONTROL] != CONTROL_NONE:
+        ux, uy = control_force(t, y, yd, p, ip)
+        out[i] = ux
+        out[i + 1] = uy
