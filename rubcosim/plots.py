@@ -1,0 +1,84 @@
+"""Scenario plots: orbit, time series, stroboscopic Poincare section (PNG)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+if TYPE_CHECKING:
+    from .runner import ScenarioRun
+
+
+def _default_pair(run: ScenarioRun) -> list[str]:
+    names = run.scenario.system.output_names
+    return ["rotor.x", "rotor.y"] if "rotor.y" in names else ["oscillator.x", "oscillator.v"]
+
+
+def _stator_circle(run: ScenarioRun, ax) -> None:
+    units = run.scenario.system.units
+    if "stator" not in units:
+        return
+    s = units["stator"].params
+    th = np.linspace(0.0, 2.0 * np.pi, 361)
+    ax.plot(s["x_offset"] + s["clearance"] * np.cos(th), s["y_offset"] + s["clearance"] * np.sin(th), "k--", lw=0.8, label="stator (clearance)")
+
+
+def orbit(run: ScenarioRun, names: list[str], path: Path) -> None:
+    fig, ax = plt.subplots(figsize=(5.5, 5.0))
+    ax.plot(run.series(names[0]), run.series(names[1]), lw=0.6)
+    if names == ["rotor.x", "rotor.y"]:
+        _stator_circle(run, ax)
+        ax.set_aspect("equal")
+        ax.legend(loc="upper right", fontsize=8)
+    ax.set_xlabel(names[0])
+    ax.set_ylabel(names[1])
+    ax.set_title(f"{run.scenario.name}: orbit ({run.result.engine})")
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+def timeseries(run: ScenarioRun, names: list[str], path: Path) -> None:
+    fig, axes = plt.subplots(len(names), 1, figsize=(8.0, 1.9 * len(names) + 0.6), sharex=True, squeeze=False)
+    for ax, name in zip(axes[:, 0], names, strict=True):
+        ax.plot(run.time, run.series(name), lw=0.7)
+        ax.set_ylabel(name, fontsize=8)
+    axes[-1, 0].set_xlabel("time (s)")
+    axes[0, 0].set_title(f"{run.scenario.name}: time series ({run.result.engine})")
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+def poincare(run: ScenarioRun, names: list[str], path: Path) -> None:
+    fig, ax = plt.subplots(figsize=(5.5, 5.0))
+    ax.plot(run.poincare(names[0]), run.poincare(names[1]), ".", ms=3)
+    ax.set_xlabel(names[0])
+    ax.set_ylabel(names[1])
+    sim = run.scenario.sim
+    ax.set_title(f"{run.scenario.name}: stroboscopic section, phase {sim['poincare_phase']:g} rad, t >= {sim['t_start'] + sim['poincare_discard']:g} s", fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+def scenario_plots(run: ScenarioRun, out: Path) -> list[Path]:
+    """Write orbit.png, timeseries.png and poincare.png into ``out``."""
+    pl = run.scenario.plots
+    pair = _default_pair(run)
+    written = []
+    for kind, func, default in (
+        ("orbit", orbit, pair),
+        ("timeseries", timeseries, pair),
+        ("poincare", poincare, pair),
+    ):
+        path = out / f"{kind}.png"
+        func(run, pl.get(kind, default), path)
+        written.append(path)
+    return written

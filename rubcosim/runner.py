@@ -1,0 +1,130 @@
+"""Run a scenario and write its results: ``results.csv``, ``report.json``, plots."""
+
+from __future__ import annotations
+
+import json
+import math
+import shutil
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from rubcosim.reference.simulate import Result, output_grid, simulate
+from rubcosim.reference.system import KIND_NAMES
+
+from .scenario import Scenario
+
+
+@dataclass
+class ScenarioRun:
+    scenario: Scenario
+    result: Result
+    grid_rows: np.ndarray  # rows of result that belong to the output grid
+    strobe_rows: np.ndarray  # rows that are stroboscopic Poincare samples
+
+    def series(self, name: str) -> np.ndarray:
+        return self.result.output(name)[self.grid_rows]
+
+    @property
+    def time(self) -> np.ndarray:
+        return self.result.t[self.grid_rows]
+
+    def poincare(self, name: str) -> np.ndarray:
+        values = self.result.output(name)[self.strobe_rows]
+        return values[np.isfinite(values)]
+
+
+def strobe_times(scenario: Scenario) -> np.ndarray:
+    """Fixed-phase section t = (2 pi k + phase)/w after ``sim.poincare_discard``."""
+    sim = scenario.sim
+    period = scenario.system.forcing_period
+    shift = sim["poincare_phase"] / (2.0 * math.pi) * period
+    first = math.ceil((sim["t_start"] + sim["poincare_discard"] - shift) / period - 1e-9)
+    last = math.floor((sim["t_end"] - shift) / period + 1e-9)
+    return shift + period * np.arange(first, last + 1)
+
+
+def run_scenario(scenario: Scenario, engine: str | None = None) -> ScenarioRun:
+    sim = scenario.sim
+    step = sim["output_step"] or (sim["t_end"] - sim["t_start"]) / 1000.0
+    grid = output_grid(sim["t_start"], sim["t_end"], step)
+    strobe = strobe_times(scenario)
+    t_all = np.concatenate((grid, strobe))
+    order = np.argsort(t_all, kind="stable")
+    rank = np.empty_like(order)
+    rank[order] = np.arange(order.size)
+    result = simulate(
+        scenario.system,
+        sim["t_end"],
+        t_start=sim["t_start"],
+        t_eval=t_all[order],
+        engine=engine or sim["engine"],
+        rtol=sim["rtol"],
+        atol=sim["atol"],
+        max_events=sim["max_events"],
+    )
+    return ScenarioRun(scenario, result, rank[: grid.size], rank[grid.size :])
+
+
+def report(run: ScenarioRun) -> dict[str, Any]:
+    r = run.result
+    sc = run.scenario
+    kinds = {name: int(np.sum(r.events.kind == i)) for i, name in enumerate(KIND_NAMES)}
+    params = dict(sc.parameters)
+    params["sim.engine"] = r.engine
+    return {
+        "scenario": sc.name,
+        "description": sc.description,
+        "source": sc.source,
+        "engine": r.engine,
+        "status": "ok" if r.ok else "failed",
+        "message": r.message,
+        "t_start": sc.sim["t_start"],
+        "t_end": sc.sim["t_end"],
+        "t_reached": r.t_reached,
+        "wall_time_s": r.wall_time_s,
+        "n_events": r.counters["events"],
+        "n_impacts": r.counters["impacts"],
+        "events_by_kind": kinds,
+        "counters": r.counters,
+        "forcing_period": sc.system.forcing_period,
+        "poincare_points": int(run.strobe_rows.size),
+        "parameters": params,
+        "final_state": dict(zip(sc.system.state_names, map(float, r.final_state), strict=True)),
+        "final_mode": r.final_mode,
+        "outputs": sc.outputs,
+    }
+
+
+def write_results(run: ScenarioRun, out_dir: str | Path) -> Path:
+    """Write everything into a fresh directory, then move it to ``out_dir``.
+
+    A previous result in ``out_dir`` is replaced only once the new one is
+    complete, so an interrupted run never leaves a half-written result.
+    """
+    from . import plots  # matplotlib only when writing
+
+    out = Path(out_dir)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
+    try:
+        names = run.scenario.outputs
+        keep = run.time <= run.result.t_reached + 1e-12
+        table = np.column_stack([run.time[keep]] + [run.series(n)[keep] for n in names])
+        np.savetxt(tmp / "results.csv", table, delimiter=",", header=",".join(["time", *names]), comments="", fmt="%.17g")
+        (tmp / "report.json").write_text(json.dumps(report(run), indent=2) + "\n", encoding="utf-8")
+        plots.scenario_plots(run, tmp)
+        if out.exists():
+            old = Path(tempfile.mkdtemp(prefix=f".{out.name}.old.", dir=out.parent))
+            out.rename(old / out.name)
+            tmp.rename(out)
+            shutil.rmtree(old)
+        else:
+            tmp.rename(out)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+    return out

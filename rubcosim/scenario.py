@@ -1,0 +1,223 @@
+"""Scenario files: TOML that names the units, their parameters, the run and its plots.
+
+Layout::
+
+    [scenario]            name, description
+    [sim]                 t_end (required), t_start, output_step, engine, rtol, atol,
+                          max_events, chatter_tol, poincare_discard, poincare_phase
+    [units.ROLE]          type = "...", then the unit's parameters (see rubcosim.components)
+    [outputs]             record = ["rotor.x", ...]   (default: every output)
+    [plots]               orbit = [X, Y], timeseries = [...], poincare = [X, Y]
+
+``--set role.name=value`` overrides any unit parameter (initial states
+included: ``rotor.x0``...) or setting (``sim.t_end``...).  Every error is a
+:class:`ScenarioError` naming the file, the key and what is allowed.
+"""
+
+from __future__ import annotations
+
+import math
+import tomllib
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from rubcosim.components.catalog import UNIT_TYPES
+from rubcosim.components.parameters import ParameterError
+from rubcosim.reference.assemble import DEFAULT_CHATTER_TOL, System, build_system, make_unit
+from rubcosim.reference.simulate import ENGINES, MIN_RTOL
+
+
+class ScenarioError(ValueError):
+    """The scenario file or an override is malformed; the message names the key."""
+
+
+SIM_DEFAULTS: dict[str, Any] = {
+    "t_start": 0.0,
+    "t_end": None,
+    "output_step": None,
+    "engine": "fast",
+    "rtol": 1e-10,
+    "atol": None,
+    "max_events": 100_000,
+    "chatter_tol": DEFAULT_CHATTER_TOL,
+    "poincare_discard": 0.0,
+    "poincare_phase": 0.0,
+}
+PLOT_KINDS = ("orbit", "timeseries", "poincare")
+TOP_LEVEL = ("scenario", "sim", "units", "outputs", "plots")
+
+
+@dataclass
+class Scenario:
+    name: str
+    description: str
+    sim: dict[str, Any]
+    units: dict[str, dict[str, Any]]
+    record: list[str] | None
+    plots: dict[str, list[str]]
+    system: System
+    source: str = ""
+    parameters: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def outputs(self) -> list[str]:
+        """Names of the recorded outputs."""
+        return list(self.record) if self.record else list(self.system.output_names)
+
+
+def parse_override(text: str) -> tuple[str, str, Any]:
+    """Split ``role.name=value``; the value is read as a TOML value, else as a string."""
+    if "=" not in text:
+        raise ScenarioError(f"--set {text!r}: expected unit.parameter=value")
+    key, raw = text.split("=", 1)
+    key = key.strip()
+    if key.count(".") != 1 or not all(key.split(".")):
+        raise ScenarioError(f"--set {text!r}: expected unit.parameter=value")
+    role, name = key.split(".")
+    try:
+        value = tomllib.loads(f"v = {raw.strip()}")["v"]
+    except tomllib.TOMLDecodeError:
+        value = raw.strip()
+    return role, name, value
+
+
+def _check_table(where: str, value: Any) -> dict[str, Any]:
+    if not isinstance(value, dict):
+        raise ScenarioError(f"{where} must be a table")
+    return value
+
+
+def _sim_settings(raw: Mapping[str, Any]) -> dict[str, Any]:
+    unknown = sorted(set(raw) - set(SIM_DEFAULTS))
+    if unknown:
+        raise ScenarioError(f"sim.{unknown[0]} is not a setting (known: {', '.join(SIM_DEFAULTS)})")
+    sim = dict(SIM_DEFAULTS)
+    sim.update(raw)
+    if sim["t_end"] is None:
+        raise ScenarioError("sim.t_end is required")
+    for key in ("t_start", "t_end", "rtol", "chatter_tol", "poincare_discard", "poincare_phase"):
+        sim[key] = _number(f"sim.{key}", sim[key])
+    for key in ("output_step", "atol"):
+        if sim[key] is not None:
+            sim[key] = _number(f"sim.{key}", sim[key])
+            if sim[key] <= 0.0:
+                raise ScenarioError(f"sim.{key} = {sim[key]!r} must be > 0")
+    if sim["t_end"] <= sim["t_start"]:
+        raise ScenarioError(f"sim.t_end = {sim['t_end']!r} must be greater than sim.t_start = {sim['t_start']!r}")
+    if not MIN_RTOL <= sim["rtol"] < 1.0:
+        raise ScenarioError(f"sim.rtol = {sim['rtol']!r} is outside [{MIN_RTOL:.3g}, 1)")
+    if not 0.0 < sim["chatter_tol"] < 1.0:
+        raise ScenarioError(f"sim.chatter_tol = {sim['chatter_tol']!r} is outside (0, 1)")
+    if sim["engine"] not in ENGINES:
+        raise ScenarioError(f"sim.engine = {sim['engine']!r} is not one of {', '.join(ENGINES)}")
+    me = sim["max_events"]
+    if isinstance(me, bool) or not isinstance(me, int) or me < 1:
+        raise ScenarioError(f"sim.max_events = {me!r} must be a positive integer")
+    if sim["poincare_discard"] < 0.0:
+        raise ScenarioError("sim.poincare_discard must be >= 0")
+    return sim
+
+
+def _number(key: str, value: Any) -> float:
+    if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
+        raise ScenarioError(f"{key} = {value!r} is not a finite number")
+    return float(value)
+
+
+def _names(where: str, value: Any) -> list[str]:
+    if not isinstance(value, list) or not all(isinstance(v, str) for v in value):
+        raise ScenarioError(f"{where} must be a list of output names")
+    return list(value)
+
+
+def build_scenario(data: Mapping[str, Any], overrides: Iterable[str] = (), source: str = "") -> Scenario:
+    """Validate a parsed scenario, apply ``--set`` overrides and assemble the system."""
+    data = _check_table("the scenario", data)
+    unknown = sorted(set(data) - set(TOP_LEVEL))
+    if unknown:
+        raise ScenarioError(f"[{unknown[0]}] is not a scenario section (known: {', '.join(TOP_LEVEL)})")
+    meta = _check_table("[scenario]", data.get("scenario", {}))
+    units_raw = _check_table("[units]", data.get("units", {}))
+    if not units_raw:
+        raise ScenarioError("[units] is empty: name at least a rotor or an oscillator")
+    units: dict[str, dict[str, Any]] = {}
+    for role, table in units_raw.items():
+        if role not in UNIT_TYPES:
+            raise ScenarioError(f"units.{role} is not a known unit (known: {', '.join(UNIT_TYPES)})")
+        units[role] = dict(_check_table(f"[units.{role}]", table))
+        if "type" not in units[role]:
+            raise ScenarioError(f"units.{role}.type is required (one of {', '.join(UNIT_TYPES[role])})")
+    sim_raw = dict(_check_table("[sim]", data.get("sim", {})))
+    for text in overrides:
+        role, name, value = parse_override(text)
+        if role == "sim":
+            if name not in SIM_DEFAULTS:
+                raise ScenarioError(f"--set sim.{name}: not a setting (known: {', '.join(SIM_DEFAULTS)})")
+            sim_raw[name] = value
+        elif role in units:
+            units[role][name] = value
+        else:
+            known = ", ".join(["sim", *units])
+            raise ScenarioError(f"--set {role}.{name}: unit {role!r} is not in this scenario (known: {known})")
+    sim = _sim_settings(sim_raw)
+    try:
+        built = {role: make_unit(role, t["type"], {k: v for k, v in t.items() if k != "type"}) for role, t in units.items()}
+        system = build_system(built, chatter_tol=sim["chatter_tol"])
+    except ParameterError as exc:
+        raise ScenarioError(str(exc)) from None
+    outputs = _check_table("[outputs]", data.get("outputs", {}))
+    unknown = sorted(set(outputs) - {"record"})
+    if unknown:
+        raise ScenarioError(f"outputs.{unknown[0]} is not a key of [outputs] (known: record)")
+    record = _names("outputs.record", outputs["record"]) if "record" in outputs else None
+    for name in record or []:
+        if name not in system.output_names:
+            raise ScenarioError(f"outputs.record: {name!r} is not an output (available: {', '.join(system.output_names)})")
+    plots = {k: _names(f"plots.{k}", v) for k, v in _check_table("[plots]", data.get("plots", {})).items()}
+    for kind, names in plots.items():
+        if kind not in PLOT_KINDS:
+            raise ScenarioError(f"plots.{kind} is not a plot kind (known: {', '.join(PLOT_KINDS)})")
+        if kind in ("orbit", "poincare") and len(names) != 2:
+            raise ScenarioError(f"plots.{kind} needs exactly two output names [x, y]")
+        for name in names:
+            if name not in system.output_names:
+                raise ScenarioError(f"plots.{kind}: {name!r} is not an output (available: {', '.join(system.output_names)})")
+    if record is not None:
+        for names in plots.values():
+            for name in names:
+                if name not in record:
+                    record.append(name)
+    parameters = {f"{role}.type": u.type for role, u in system.units.items()}
+    for role, u in system.units.items():
+        parameters.update({f"{role}.{k}": v for k, v in u.params.items()})
+    parameters.update({f"sim.{k}": v for k, v in sim.items()})
+    return Scenario(
+        name=str(meta.get("name", Path(source).stem if source else "scenario")),
+        description=str(meta.get("description", "")),
+        sim=sim,
+        units=units,
+        record=record,
+        plots=plots,
+        system=system,
+        source=source,
+        parameters=parameters,
+    )
+
+
+def load_scenario(path: str | Path, overrides: Iterable[str] = ()) -> Scenario:
+    """Read, validate and assemble a scenario file."""
+    path = Path(path)
+    if not path.is_file():
+        raise ScenarioError(f"{path}: no such scenario file")
+    try:
+        data = tomllib.loads(path.read_text(encoding="utf-8"))
+    except tomllib.TOMLDecodeError as exc:
+        raise ScenarioError(f"{path}: not valid TOML ({exc})") from None
+    except UnicodeDecodeError:
+        raise ScenarioError(f"{path}: not a UTF-8 text file") from None
+    try:
+        return build_scenario(data, overrides, source=str(path))
+    except ScenarioError as exc:
+        raise ScenarioError(f"{path.name}: {exc}") from None
