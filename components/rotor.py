@@ -95,10 +95,13 @@ def shaft_force(
 def free_whirl(mass: float, damping: float, stiffness: float, eccentricity: float, speed: float):
     """Steady unbalance whirl of a free Jeffcott disc: x = A cos(w t - phase).
 
-    Returns ``(A, phase)`` with A in m and phase in rad (0 <= phase <= pi).
+    Returns ``(A, phase)`` with A in m and phase in rad (0 <= phase <= pi);
+    A is infinite at undamped resonance.
     """
     wn = math.sqrt(stiffness / mass)
     s = speed / wn
     z = damping / (2.0 * mass * wn)
-    amp = eccentricity * s * s / math.hypot(1.0 - s * s, 2.0 * z * s)
-    return amp, math.atan2(2.0 * z * s, 1.0 - s * s)
+    den = math.hypot(1.0 - s * s, 2.0 * z * s)
+    if den == 0.0:
+        return math.inf, 0.5 * math.pi
+    return eccentricity * s * s / den, math.atan2(2.0 * z * s, 1.0 - s * s)

@@ -110,6 +110,26 @@ def rigid_impact(
 
 
 @nb.njit(cache=True)
+def penalty_normal_force(rx: float, ry: float, rvx: float, rvy: float, d: float, kc: float, cc: float):
+    """Normal penalty force ``Fn = kc (dist - d) + cc * d(dist)/dt``, N (>0 pushes inward).
+
+    Linear Kelvin-Voigt contact, as in the brief: it may pull for a moment
+    before separation, which keeps the restitution of
+    :func:`damping_from_restitution` exact.  Returns ``(Fn, dist, nx, ny)``;
+    ``Fn`` is for a disc in contact (the caller decides contact).
+    """
+    dist, nx, ny = contact_geometry(rx, ry)
+    return kc * (dist - d) + cc * (rvx * nx + rvy * ny), dist, nx, ny
+
+
+@nb.njit(cache=True)
+def contact_force_components(fn: float, ft: float, nx: float, ny: float) -> tuple[float, float]:
+    """Cartesian force on the disc from a normal force ``fn`` (pushing along -n)
+    and a tangential force ``ft`` (along t)."""
+    return -fn * nx - ft * ny, -fn * ny + ft * nx
+
+
+@nb.njit(cache=True)
 def penalty_contact_force(
     rx: float,
     ry: float,
@@ -122,24 +142,37 @@ def penalty_contact_force(
     rd: float,
     w: float,
 ) -> tuple[float, float, float]:
-    """Penalty contact force on the disc for relative position/velocity r, rv.
+    """Penalty contact force on the disc with Coulomb friction ``mu Fn`` against the slip.
 
-    ``Fn = kc (dist - d) + cc * d(dist)/dt`` when ``dist > d`` (linear
-    Kelvin-Voigt contact, as in the brief; it may pull for a moment before
-    separation, which keeps the restitution of :func:`damping_from_restitution`
-    exact), friction ``mu Fn`` against the slip.  With ``cc = 0`` and positive
-    slip this is the Chu-Zhang force ``-kc (1 - d/e) [rx - mu ry, mu rx + ry]``.
-
-    Returns ``(fx, fy, Fn)``.
+    Stateless form (contact whenever ``dist > d``, friction sign from the
+    slip), for a unit that sees only the relative position and velocity r, rv.
+    With ``cc = 0`` and positive slip this is the Chu-Zhang force
+    ``-kc (1 - d/e) [rx - mu ry, mu rx + ry]``.  Returns ``(fx, fy, Fn)``.
     """
-    dist, nx, ny = contact_geometry(rx, ry)
+    fn, dist, nx, ny = penalty_normal_force(rx, ry, rvx, rvy, d, kc, cc)
     if dist <= d:
         return 0.0, 0.0, 0.0
-    fn = kc * (dist - d) + cc * (rvx * nx + rvy * ny)
     vs = slip_speed(rvx, rvy, nx, ny, rd, w)
     sgn = 1.0 if vs > 0.0 else (-1.0 if vs < 0.0 else 0.0)
-    ft = -mu * fn * sgn
-    return -fn * nx - ft * ny, -fn * ny + ft * nx, fn
+    fx, fy = contact_force_components(fn, -mu * fn * sgn, nx, ny)
+    return fx, fy, fn
+
+
+@nb.njit(cache=True)
+def sticking_friction(
+    ft_disc: float, ft_stator: float, vt: float, vn: float, dist: float, m: float, ms: float
+) -> float:
+    """Tangential contact force (along t, on the disc) that keeps the slip speed constant.
+
+    ``ft_disc``/``ft_stator`` are the tangential parts of every other force on
+    the disc and on the casing; ``ms = inf`` for a fixed stator.  From
+    ``d(vs)/dt = a_rel.t - vt vn / dist = 0`` with ``vs = v_rel.t + Rd w``.
+    """
+    inv = 1.0 / m if ms == math.inf else 1.0 / m + 1.0 / ms
+    rhs = vt * vn / dist - ft_disc / m
+    if ms != math.inf:
+        rhs += ft_stator / ms
+    return rhs / inv
 
 
 @nb.njit(cache=True)

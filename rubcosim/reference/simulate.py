@@ -75,9 +75,11 @@ class Result:
 def output_grid(t_start: float, t_end: float, step: float) -> np.ndarray:
     """Uniform grid from t_start to t_end inclusive (the last point is t_end)."""
     n = int(math.floor((t_end - t_start) / step + 1e-9))
-    grid = t_start + step * np.arange(n + 1)
+    grid = np.minimum(t_start + step * np.arange(n + 1), t_end)
     if grid[-1] < t_end - 1e-12 * max(1.0, abs(t_end)):
         grid = np.append(grid, t_end)
+    else:
+        grid[-1] = t_end
     return grid
 
 

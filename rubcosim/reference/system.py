@@ -16,9 +16,15 @@ delayed-feedback controller on the disc.
 
 Discrete modes
 --------------
-Rotor with rigid stator: ``MODE_FREE``, ``MODE_SLIDE_POS`` / ``MODE_SLIDE_NEG``
-(sustained contact, slip speed positive / negative), ``MODE_STICK`` (sustained
-contact without slip: the disc rolls on the stator).  Oscillator:
+Rotor with a stator: ``MODE_FREE`` (no contact), ``MODE_SLIDE_POS`` /
+``MODE_SLIDE_NEG`` (in contact, slip speed positive / negative: the friction
+direction is fixed by the mode, so the right-hand side is smooth within a
+step), ``MODE_STICK`` (in contact without slip: the disc rolls on the
+stator, friction holds it).  For the rigid stator "in contact" is sustained
+contact (full annular rub) with the normal force from the constraint; for
+the elastic stators it is penalty contact.  Slip reversal, sticking and
+release are events, so friction is a proper Filippov system, never a sign
+that chatters inside a step.  Oscillator:
 ``MODE_FREE``, ``MODE_STUCK_UPPER``, ``MODE_STUCK_LOWER``.
 
 Event slots
@@ -50,10 +56,10 @@ from rubcosim.components.oscillator import (
 from rubcosim.components.rotor import jeffcott_force, shaft_force
 from rubcosim.components.stator import (
     constraint_normal_force,
+    contact_force_components,
     contact_geometry,
-    penalty_contact_force,
     rigid_impact,
-    slip_speed,
+    sticking_friction,
 )
 
 FAMILY_ROTOR = 0
@@ -155,45 +161,55 @@ def stator_centre(y: np.ndarray, p: np.ndarray, ip: np.ndarray):
 
 
 @nb.njit(cache=True)
-def sustained_contact_force(t, y, yd, mode, p, ip):
-    """Contact force (fx, fy, N) of a rigid stator on a disc in sustained contact."""
+def contact_kinematics(y: np.ndarray, p: np.ndarray, ip: np.ndarray):
+    """Distance, normal (nx, ny) and relative normal/tangential speeds of the disc."""
+    cx, cy, cvx, cvy = stator_centre(y, p, ip)
+    dist, nx, ny = contact_geometry(y[0] - cx, y[1] - cy)
+    rvx, rvy = y[2] - cvx, y[3] - cvy
+    return dist, nx, ny, rvx * nx + rvy * ny, -rvx * ny + rvy * nx
+
+
+@nb.njit(cache=True)
+def casing_support_force(y: np.ndarray, p: np.ndarray, ip: np.ndarray):
+    c = ip[IP_CASING]
+    if c < 0:
+        return 0.0, 0.0
+    return -p[P_KS] * y[c] - p[P_CSC] * y[c + 2], -p[P_KS] * y[c + 1] - p[P_CSC] * y[c + 3]
+
+
+@nb.njit(cache=True)
+def contact_normal_force(t, y, yd, p, ip, dist, nx, ny, vn, vt):
+    """Normal contact force on a disc in contact, N (> 0 pushes it inward)."""
+    if ip[IP_STATOR] == STATOR_RIGID:
+        fx, fy = disc_external_force(t, y, yd, p, ip)
+        return constraint_normal_force(fx, fy, nx, ny, vt, vn, dist, p[P_D], p[P_M], p[P_OMEGA_B])
+    return p[P_KC] * (dist - p[P_D]) + p[P_CC] * vn
+
+
+@nb.njit(cache=True)
+def holding_friction(t, y, yd, p, ip, dist, nx, ny, vn, vt):
+    """Tangential force that keeps the slip speed at zero (sticking contact), N."""
     fx, fy = disc_external_force(t, y, yd, p, ip)
-    dist, nx, ny = contact_geometry(y[0] - p[P_X0], y[1] - p[P_Y0])
-    vn = y[2] * nx + y[3] * ny
-    vt = -y[2] * ny + y[3] * nx
-    n = constraint_normal_force(fx, fy, nx, ny, vt, vn, dist, p[P_D], p[P_M], p[P_OMEGA_B])
-    if mode == MODE_SLIDE_POS:
-        ft = -p[P_MU] * n
-    elif mode == MODE_SLIDE_NEG:
-        ft = p[P_MU] * n
-    else:  # stick: friction holds the slip at zero
-        ft = fx * ny - fy * nx
-    return -n * nx - ft * ny, -n * ny + ft * nx, n
+    sx, sy = casing_support_force(y, p, ip)
+    ms = p[P_MS] if ip[IP_CASING] >= 0 else math.inf
+    return sticking_friction(-fx * ny + fy * nx, -sx * ny + sy * nx, vt, vn, dist, p[P_M], ms)
 
 
 @nb.njit(cache=True)
 def contact_force(t, y, yd, mode, p, ip):
     """Stator contact force on the disc (fx, fy) and its normal part, N."""
-    kind = ip[IP_STATOR]
-    if kind == STATOR_RIGID:
-        if mode == MODE_FREE:
-            return 0.0, 0.0, 0.0
-        return sustained_contact_force(t, y, yd, mode, p, ip)
-    if kind == STATOR_ELASTIC or kind == STATOR_CASING:
-        cx, cy, cvx, cvy = stator_centre(y, p, ip)
-        return penalty_contact_force(
-            y[0] - cx,
-            y[1] - cy,
-            y[2] - cvx,
-            y[3] - cvy,
-            p[P_D],
-            p[P_KC],
-            p[P_CC],
-            p[P_MU],
-            p[P_RD],
-            p[P_W],
-        )
-    return 0.0, 0.0, 0.0
+    if ip[IP_STATOR] == STATOR_NONE or mode == MODE_FREE:
+        return 0.0, 0.0, 0.0
+    dist, nx, ny, vn, vt = contact_kinematics(y, p, ip)
+    n = contact_normal_force(t, y, yd, p, ip, dist, nx, ny, vn, vt)
+    if mode == MODE_SLIDE_POS:
+        ft = -p[P_MU] * max(n, 0.0)
+    elif mode == MODE_SLIDE_NEG:
+        ft = p[P_MU] * max(n, 0.0)
+    else:
+        ft = holding_friction(t, y, yd, p, ip, dist, nx, ny, vn, vt)
+    fx, fy = contact_force_components(n, ft, nx, ny)
+    return fx, fy, n
 
 
 @nb.njit(cache=True)
@@ -259,26 +275,28 @@ def rotor_events(t, y, yd, mode, p, ip, g, dirs, rates):
     kind = ip[IP_STATOR]
     if kind == STATOR_NONE:
         return
-    cx, cy, cvx, cvy = stator_centre(y, p, ip)
-    dist, nx, ny = contact_geometry(y[0] - cx, y[1] - cy)
-    vn = (y[2] - cvx) * nx + (y[3] - cvy) * ny
-    if kind != STATOR_RIGID or mode == MODE_FREE:
+    dist, nx, ny, vn, vt = contact_kinematics(y, p, ip)
+    if mode == MODE_FREE:
         g[0] = p[P_D] - dist
         g[1] = -vn
-        dirs[0] = -1 if kind == STATOR_RIGID else 2
+        dirs[0] = -1
         rates[0] = 1
         return
-    fx, fy = disc_external_force(t, y, yd, p, ip)
-    vt = -y[2] * ny + y[3] * nx
-    n = constraint_normal_force(fx, fy, nx, ny, vt, vn, dist, p[P_D], p[P_M], p[P_OMEGA_B])
-    g[0] = n
-    dirs[0] = -1
-    if mode == MODE_STICK:
-        g[1] = p[P_MU] * n - abs(-fx * ny + fy * nx)
-        dirs[1] = -1
+    n = contact_normal_force(t, y, yd, p, ip, dist, nx, ny, vn, vt)
+    if kind == STATOR_RIGID:
+        g[0] = n
+        dirs[0] = -1
     else:
-        g[1] = slip_speed(y[2], y[3], nx, ny, p[P_RD], p[P_W])
-        dirs[1] = -1 if mode == MODE_SLIDE_POS else 1
+        g[0] = p[P_D] - dist
+        g[1] = -vn
+        dirs[0] = 1
+        rates[0] = 1
+    if mode == MODE_STICK:
+        g[2] = p[P_MU] * max(n, 0.0) - abs(holding_friction(t, y, yd, p, ip, dist, nx, ny, vn, vt))
+        dirs[2] = -1
+    else:
+        g[2] = vt + p[P_RD] * p[P_W]
+        dirs[2] = -1 if mode == MODE_SLIDE_POS else 1
 
 
 @nb.njit(cache=True)
@@ -321,68 +339,57 @@ def events(t, y, yd, mode, p, ip, g, dirs, rates):
 
 
 @nb.njit(cache=True)
-def settle_contact(t, y, yd, p, ip, n_force):
-    """Mode of a disc that has come to rest in the normal direction on a rigid stator."""
-    dist, nx, ny = contact_geometry(y[0] - p[P_X0], y[1] - p[P_Y0])
-    vs = slip_speed(y[2], y[3], nx, ny, p[P_RD], p[P_W])
-    if abs(vs) > p[P_VCHAT]:
+def settle_contact(t, y, yd, p, ip, slip_threshold, current):
+    """Mode of a disc in contact: sliding with the sign of the slip, or sticking
+    if the slip is (below ``slip_threshold``) zero and friction can hold it."""
+    dist, nx, ny, vn, vt = contact_kinematics(y, p, ip)
+    vs = vt + p[P_RD] * p[P_W]
+    if abs(vs) > slip_threshold:
         return MODE_SLIDE_POS if vs > 0.0 else MODE_SLIDE_NEG
-    fx, fy = disc_external_force(t, y, yd, p, ip)
-    ft = -fx * ny + fy * nx
-    if abs(ft) <= p[P_MU] * n_force:
-        # Rolling without slip: the tangential speed is exactly -Rd w.
-        vt = -p[P_RD] * p[P_W]
-        y[2] = -vt * ny
-        y[3] = vt * nx
+    n = contact_normal_force(t, y, yd, p, ip, dist, nx, ny, vn, vt)
+    ft = holding_friction(t, y, yd, p, ip, dist, nx, ny, vn, vt)
+    new_mode = MODE_SLIDE_NEG if ft > 0.0 else MODE_SLIDE_POS
+    if abs(ft) <= p[P_MU] * max(n, 0.0) or new_mode == current:
+        # Friction holds the slip at zero (or round-off would send it back the
+        # way it came, which the slip event just ruled out).
+        if ip[IP_STATOR] == STATOR_RIGID:
+            # rolling without slip on a fixed stator: tangential speed exactly -Rd w
+            dvt = -p[P_RD] * p[P_W] - vt
+            y[2] -= dvt * ny
+            y[3] += dvt * nx
         return MODE_STICK
-    return MODE_SLIDE_POS if ft > 0.0 else MODE_SLIDE_NEG
+    return new_mode
 
 
 @nb.njit(cache=True)
 def rotor_apply(k, t, y, yd, mode, p, ip):
-    kind = ip[IP_STATOR]
-    if kind != STATOR_RIGID:
-        cx, cy, cvx, cvy = stator_centre(y, p, ip)
-        dist, nx, ny = contact_geometry(y[0] - cx, y[1] - cy)
-        vn = (y[2] - cvx) * nx + (y[3] - cvy) * ny
-        return mode, KIND_CONTACT_ON if vn > 0.0 else KIND_CONTACT_OFF
-    if mode == MODE_FREE:
-        d = p[P_D]
-        dist, nx, ny = contact_geometry(y[0] - p[P_X0], y[1] - p[P_Y0])
-        # The event locator leaves the disc within round-off of the stator: put it on it.
-        y[0] = p[P_X0] + d * nx
-        y[1] = p[P_Y0] + d * ny
-        vx, vy = rigid_impact(y[2], y[3], nx, ny, p[P_R], p[P_MU], p[P_RD], p[P_W])
-        vn = vx * nx + vy * ny
-        y[2] = vx
-        y[3] = vy
-        if -vn >= p[P_VCHAT]:
-            return MODE_FREE, KIND_IMPACT
-        # The rebound is too small to leave: chattering has ended.
-        y[2] = vx - vn * nx
-        y[3] = vy - vn * ny
-        fx, fy = disc_external_force(t, y, yd, p, ip)
-        vt = -y[2] * ny + y[3] * nx
-        n = constraint_normal_force(fx, fy, nx, ny, vt, 0.0, d, d, p[P_M], 0.0)
-        if n > 0.0:
-            return settle_contact(t, y, yd, p, ip, n), KIND_IMPACT
-        return MODE_FREE, KIND_IMPACT
-    if k == 0:
-        return MODE_FREE, KIND_RELEASE
-    # Slip speed reached zero while sliding, or friction can no longer hold while sticking.
+    rigid = ip[IP_STATOR] == STATOR_RIGID
+    if k == 2:
+        return settle_contact(t, y, yd, p, ip, math.inf, mode), KIND_SLIP
+    if mode != MODE_FREE:
+        return MODE_FREE, KIND_RELEASE if rigid else KIND_CONTACT_OFF
+    if not rigid:
+        return settle_contact(t, y, yd, p, ip, p[P_VCHAT], mode), KIND_CONTACT_ON
+    d = p[P_D]
     dist, nx, ny = contact_geometry(y[0] - p[P_X0], y[1] - p[P_Y0])
+    # The event locator leaves the disc within round-off of the stator: put it on it.
+    y[0] = p[P_X0] + d * nx
+    y[1] = p[P_Y0] + d * ny
+    vx, vy = rigid_impact(y[2], y[3], nx, ny, p[P_R], p[P_MU], p[P_RD], p[P_W])
+    vn = vx * nx + vy * ny
+    y[2] = vx
+    y[3] = vy
+    if -vn >= p[P_VCHAT]:
+        return MODE_FREE, KIND_IMPACT
+    # The rebound is too small to leave: chattering has ended.
+    y[2] = vx - vn * nx
+    y[3] = vy - vn * ny
     fx, fy = disc_external_force(t, y, yd, p, ip)
-    vn = y[2] * nx + y[3] * ny
     vt = -y[2] * ny + y[3] * nx
-    n = constraint_normal_force(fx, fy, nx, ny, vt, vn, dist, p[P_D], p[P_M], p[P_OMEGA_B])
-    ft = -fx * ny + fy * nx
-    if mode != MODE_STICK and abs(ft) <= p[P_MU] * n:
-        return settle_contact(t, y, yd, p, ip, n), KIND_SLIP
-    new_mode = MODE_SLIDE_POS if ft > 0.0 else MODE_SLIDE_NEG
-    if new_mode == mode:
-        # Round-off put us back in the same sliding direction: hold the slip instead.
-        return MODE_STICK, KIND_SLIP
-    return new_mode, KIND_SLIP
+    n = constraint_normal_force(fx, fy, nx, ny, vt, 0.0, d, d, p[P_M], 0.0)
+    if n > 0.0:
+        return settle_contact(t, y, yd, p, ip, p[P_VCHAT], MODE_FREE), KIND_IMPACT
+    return MODE_FREE, KIND_IMPACT
 
 
 @nb.njit(cache=True)
@@ -480,10 +487,7 @@ def outputs(t, y, yd, mode, p, ip, out):
         out[i] = p[P_D] - math.hypot(y[0] - cx, y[1] - cy)
         _, _, n = contact_force(t, y, yd, mode, p, ip)
         out[i + 1] = n
-        if ip[IP_STATOR] == STATOR_RIGID:
-            out[i + 2] = 0.0 if mode == MODE_FREE else (2.0 if mode == MODE_STICK else 1.0)
-        else:
-            out[i + 2] = 1.0 if out[i] < 0.0 else 0.0
+        out[i + 2] = 0.0 if mode == MODE_FREE else (2.0 if mode == MODE_STICK else 1.0)
         i += 3
     c = ip[IP_CASING]
     if c >= 0:

@@ -1,0 +1,574 @@
+"""Engine benchmark: wall time per forcing period at equal accuracy.
+
+Measures three integrators of the same nonsmooth models:
+
+* ``fast``: the numba-compiled event-driven DOP853 engine (``simulate(engine="fast")``);
+* ``accurate``: the scipy DOP853 stepper driven by the shared event machinery
+  (``simulate(engine="accurate")``);
+* ``scipy loop``: what a typical user would write, a ``scipy.integrate.solve_ivp``
+  (DOP853) call with a terminal event on the gap (``gap = 0``, direction -1),
+  restarted after every event with the impact map applied; its right-hand side is a
+  Python function that calls the component kernels (``jeffcott_force``,
+  ``free_acceleration``) and its impact map calls ``rigid_impact`` /
+  ``impact_velocity``.  It has no notion of sustained contact or sticking, so the
+  cases below are chosen so that the motion keeps impacting and never settles.
+
+Cases (both start on their attractor, a stable period-1 impacting orbit, found by a
+settling run from rest, so every period costs the same and integration errors do not
+grow):
+
+* ``rotor``: the flagship Jeffcott rotor (z = 0.05, e/d = 0.5, speed ratio 1.2) on a
+  rigid stator offset by 0.8 clearances along x, restitution 0.8, friction 0.05:
+  three impacts per period, no sliding or sticking.
+* ``duffing``: the impact Duffing oscillator x'' + 0.1 x' + x + x^3 = cos(1.2 t) with a
+  rigid one-sided barrier at x = 0.3, restitution 0.8: one impact per period.
+
+Equal accuracy: the trusted reference is ``simulate(engine="accurate", rtol=1e-12)``.
+The error of a run is the largest deviation of its positions from the reference on a
+stroboscopic grid (t = k T, k = 0..periods), each position normalised by the largest
+absolute value of its reference output.  For each integrator rtol is scanned from 1e-6
+to 1e-12 in half decades (atol = rtol times the state scale of the system: clearance
+for displacements, clearance times frequency for velocities, the engines' own
+convention); the loosest rtol is kept whose error is <= the target (1e-8) and whose next
+tighter rtol passes too (so that a lucky cancellation is not picked).
+
+Timing: at that rtol, one warm-up run (numba compilation excluded), then the median of
+at least ``--repeats`` runs (more for runs that take milliseconds, up to ~0.3 s of
+runs).  The wall time covers the whole call (``simulate(...)`` or the scipy loop).
+
+Run from the repository root::
+
+    .venv/bin/python benchmarks/bench_engines.py
+    .venv/bin/python benchmarks/bench_engines.py --periods 50 --repeats 5 --out /tmp/e.json
+
+It writes a JSON file (``--out``, default ``benchmarks/results/engines.json``) and a
+Markdown table (``--md``, default ``benchmarks/results/engines.md``), and prints the
+table.  It takes about a minute or two on two cores.
+"""
+
+from __future__ import annotations
+
+import argparse
+import datetime
+import json
+import math
+import os
+import platform
+import statistics
+import subprocess
+import sys
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numba
+import numpy as np
+import scipy
+from rubcosim.components.oscillator import free_acceleration, impact_velocity
+from rubcosim.components.rotor import jeffcott_force
+from rubcosim.components.stator import contact_geometry, rigid_impact
+from scipy.integrate import solve_ivp
+
+from rubcosim.reference import System, build_system, make_unit, simulate
+
+REPO = Path(__file__).resolve().parents[1]
+DEFAULT_OUT = REPO / "benchmarks" / "results" / "engines.json"
+DEFAULT_MD = REPO / "benchmarks" / "results" / "engines.md"
+
+REFERENCE_RTOL = 1e-12
+# rtol scan, loosest first: 1e-6, 3.16e-7, 1e-7, ..., 1e-12 (half decades).
+RTOL_SCAN = tuple(10.0 ** (-e / 2.0) for e in range(12, 25))
+INTEGRATORS = ("fast", "accurate", "scipy_loop")
+LABELS = {"fast": "`fast`", "accurate": "`accurate`", "scipy_loop": "scipy `solve_ivp` loop"}
+MAX_EVENTS = 100_000
+MIN_TIMED_S = 0.3  # keep repeating quick runs until this much time has been measured
+MAX_RUNS = 200
+
+
+# ---------------------------------------------------------------------------- cases
+@dataclass(frozen=True)
+class Case:
+    """A benchmark model: its units' parameters and its plain scipy counterpart."""
+
+    name: str
+    description: str
+    params: dict[str, dict[str, Any]]  # role -> {"type": ..., parameter: value}
+    state_keys: tuple[str, ...]  # (role, parameter) names of the initial state, in order
+    positions: tuple[str, ...]  # outputs compared against the reference
+    settle_periods: int
+    loop: Callable[..., tuple[np.ndarray, int, int]]
+
+    def system(self, state: np.ndarray | None = None) -> System:
+        """Build the system, optionally starting from ``state`` (same order as its states)."""
+        units = {}
+        for role, given in self.params.items():
+            q = {k: v for k, v in given.items() if k != "type"}
+            if state is not None and role == self.state_keys[0].split(".")[0]:
+                for key, value in zip(self.state_keys, state, strict=True):
+                    q[key.split(".")[1]] = float(value)
+            units[role] = make_unit(role, given["type"], q)
+        return build_system(units)
+
+
+def rotor_loop(
+    case: Case, y0: np.ndarray, t_eval: np.ndarray, rtol: float, atol: np.ndarray
+) -> tuple[np.ndarray, int, int]:
+    """Plain solve_ivp event loop for the Jeffcott rotor on a rigid stator.
+
+    Returns the positions (x, y) at ``t_eval``, the number of impacts and of rhs calls.
+    """
+    r = case.params["rotor"]
+    s = case.params["stator"]
+    m, c, k, e, w = r["mass"], r["damping"], r["stiffness"], r["eccentricity"], r["speed"]
+    rd = r["disc_radius"]
+    d, xs, ys, rest, mu = (
+        s["clearance"],
+        s["x_offset"],
+        s["y_offset"],
+        s["restitution"],
+        s["friction"],
+    )
+
+    def rhs(t: float, y: np.ndarray) -> np.ndarray:
+        fx, fy = jeffcott_force(t, y[0], y[1], y[2], y[3], m, c, k, e, w, 0.0)
+        return np.array([y[2], y[3], fx / m, fy / m])
+
+    def gap(t: float, y: np.ndarray) -> float:
+        dist, _, _ = contact_geometry(y[0] - xs, y[1] - ys)
+        return d - dist
+
+    gap.terminal = True  # type: ignore[attr-defined]
+    gap.direction = -1  # type: ignore[attr-defined]
+
+    def impact(ye: np.ndarray) -> np.ndarray:
+        _, nx, ny = contact_geometry(ye[0] - xs, ye[1] - ys)
+        vx, vy = rigid_impact(ye[2], ye[3], nx, ny, rest, mu, rd, w)
+        return np.array([ye[0], ye[1], vx, vy])
+
+    return _event_loop(rhs, gap, impact, y0, t_eval, rtol, atol, 2)
+
+
+def duffing_loop(
+    case: Case, y0: np.ndarray, t_eval: np.ndarray, rtol: float, atol: np.ndarray
+) -> tuple[np.ndarray, int, int]:
+    """Plain solve_ivp event loop for the impact Duffing oscillator (one-sided rigid stop).
+
+    Returns the position x at ``t_eval``, the number of impacts and of rhs calls.
+    """
+    o = case.params["oscillator"]
+    a, b, c3 = o["linear_stiffness"], o["damping"], o["cubic_stiffness"]
+    f, w, barrier, rest = (
+        o["forcing_amplitude"],
+        o["forcing_frequency"],
+        o["barrier"],
+        o["restitution"],
+    )
+
+    def rhs(t: float, y: np.ndarray) -> np.ndarray:
+        return np.array([y[1], free_acceleration(t, y[0], y[1], a, b, c3, f, w)])
+
+    def gap(t: float, y: np.ndarray) -> float:
+        return barrier - y[0]
+
+    gap.terminal = True  # type: ignore[attr-defined]
+    gap.direction = -1  # type: ignore[attr-defined]
+
+    def impact(ye: np.ndarray) -> np.ndarray:
+        return np.array([ye[0], impact_velocity(ye[1], rest)])
+
+    return _event_loop(rhs, gap, impact, y0, t_eval, rtol, atol, 1)
+
+
+def _event_loop(
+    rhs: Callable[[float, np.ndarray], np.ndarray],
+    gap: Callable[[float, np.ndarray], float],
+    impact: Callable[[np.ndarray], np.ndarray],
+    y0: np.ndarray,
+    t_eval: np.ndarray,
+    rtol: float,
+    atol: np.ndarray,
+    n_pos: int,
+) -> tuple[np.ndarray, int, int]:
+    """solve_ivp until the gap closes, apply the impact map, restart; until t_eval[-1]."""
+    t_end = float(t_eval[-1])
+    t = float(t_eval[0])
+    y = np.array(y0, dtype=float)
+    out = np.full((t_eval.shape[0], n_pos), np.nan)
+    i = 0
+    impacts = 0
+    nfev = 0
+    while True:
+        sol = solve_ivp(
+            rhs,
+            (t, t_end),
+            y,
+            method="DOP853",
+            t_eval=t_eval[i:],
+            events=gap,
+            rtol=rtol,
+            atol=atol,
+        )
+        if sol.status < 0:
+            raise RuntimeError(f"solve_ivp failed at t = {t:.9g}: {sol.message}")
+        nfev += sol.nfev
+        n = len(sol.t)  # a list, not an array, when no grid point fell in this stretch
+        if n:
+            out[i : i + n] = sol.y[:n_pos].T
+            i += n
+        if sol.status != 1:
+            break
+        t = float(sol.t_events[0][0])
+        y = impact(sol.y_events[0][0])
+        impacts += 1
+        if impacts > MAX_EVENTS:
+            raise RuntimeError("scipy loop: too many impacts")
+    return out, impacts, nfev
+
+
+CASES = (
+    Case(
+        name="rotor",
+        description=(
+            "Jeffcott rotor (m = 10 kg, z = 0.05, wn = 316.2 rad/s, e = 5e-5 m, speed ratio 1.2) "
+            "on a rigid stator (clearance 1e-4 m) offset by 8e-5 m along x, restitution 0.8, "
+            "friction 0.05, disc radius 0.05 m; period-1 orbit with 3 impacts per period"
+        ),
+        params={
+            "rotor": dict(
+                type="jeffcott",
+                mass=10.0,
+                damping=316.227766,
+                stiffness=1e6,
+                eccentricity=5e-5,
+                speed=379.473319,
+                disc_radius=0.05,
+            ),
+            "stator": dict(
+                type="rigid",
+                clearance=1e-4,
+                restitution=0.8,
+                friction=0.05,
+                x_offset=8e-5,
+                y_offset=0.0,
+            ),
+        },
+        state_keys=("rotor.x0", "rotor.y0", "rotor.vx0", "rotor.vy0"),
+        positions=("rotor.x", "rotor.y"),
+        settle_periods=300,
+        loop=rotor_loop,
+    ),
+    Case(
+        name="duffing",
+        description=(
+            "impact Duffing oscillator x'' + 0.1 x' + x + x^3 = cos(1.2 t), rigid one-sided "
+            "barrier at x = 0.3, restitution 0.8; period-1 orbit with 1 impact per period"
+        ),
+        params={
+            "oscillator": dict(
+                type="impact_oscillator",
+                linear_stiffness=1.0,
+                damping=0.1,
+                cubic_stiffness=1.0,
+                forcing_amplitude=1.0,
+                forcing_frequency=1.2,
+                barrier=0.3,
+                restitution=0.8,
+                stop="rigid_one_sided",
+            ),
+        },
+        state_keys=("oscillator.x0", "oscillator.v0"),
+        positions=("oscillator.x",),
+        settle_periods=200,
+        loop=duffing_loop,
+    ),
+)
+
+
+# ---------------------------------------------------------------------------- runs
+@dataclass
+class Run:
+    positions: np.ndarray  # (n_eval, n_pos)
+    impacts: int
+    rhs_evaluations: int
+    wall_s: float
+
+
+def run_once(kind: str, case: Case, system: System, t_eval: np.ndarray, rtol: float) -> Run:
+    """One run of integrator ``kind`` on the benchmark grid; wall time of the whole call."""
+    if kind == "scipy_loop":
+        atol = rtol * system.state_scale
+        t0 = time.perf_counter()
+        pos, impacts, nfev = case.loop(case, system.y0.copy(), t_eval, rtol, atol)
+        wall = time.perf_counter() - t0
+        return Run(pos, impacts, nfev, wall)
+    t0 = time.perf_counter()
+    res = simulate(
+        system, float(t_eval[-1]), t_eval=t_eval, engine=kind, rtol=rtol, max_events=MAX_EVENTS
+    )
+    wall = time.perf_counter() - t0
+    if not res.ok:
+        raise RuntimeError(f"{kind} at rtol {rtol:g} on {case.name}: {res.message}")
+    pos = np.column_stack([res.output(name) for name in case.positions])
+    return Run(pos, res.counters["impacts"], res.counters["rhs_evaluations"], wall)
+
+
+def max_error(pos: np.ndarray, ref: np.ndarray) -> float:
+    """Largest deviation, each position normalised by the max |reference| of that position."""
+    scale = np.max(np.abs(ref), axis=0)
+    err = np.max(np.abs(pos - ref), axis=0) / scale
+    return float(np.max(err)) if np.all(np.isfinite(pos)) else math.inf
+
+
+def settle(case: Case) -> np.ndarray:
+    """State on the attractor: run from rest for ``settle_periods`` and take the final state."""
+    system = case.system()
+    t_end = case.settle_periods * system.forcing_period
+    res = simulate(system, t_end, t_eval=np.array([t_end]), engine="accurate", rtol=1e-10)
+    if not res.ok or res.final_mode != 0:
+        raise RuntimeError(
+            f"{case.name}: settling run ended with {res.message}, mode {res.final_mode}"
+        )
+    return res.final_state.copy()
+
+
+def check_reference(case: Case, system: System, t_eval: np.ndarray) -> tuple[Run, dict[str, Any]]:
+    """The reference run and the checks that make the case fit for the scipy loop."""
+    t_end = float(t_eval[-1])
+    t0 = time.perf_counter()
+    res = simulate(
+        system, t_end, t_eval=t_eval, engine="accurate", rtol=REFERENCE_RTOL, max_events=MAX_EVENTS
+    )
+    wall = time.perf_counter() - t0
+    if not res.ok:
+        raise RuntimeError(f"{case.name}: reference run failed: {res.message}")
+    period = system.forcing_period
+    n_periods = int(round(t_end / period))
+    impacts = res.events.t[res.events.of_kind("impact")]
+    per_period = np.bincount(
+        np.minimum((impacts / period).astype(int), n_periods - 1), minlength=n_periods
+    )
+    other_events = int(res.events.t.shape[0] - impacts.shape[0])
+    info = {
+        "rtol": REFERENCE_RTOL,
+        "final_mode": res.final_mode,
+        "impacts": int(impacts.shape[0]),
+        "impacts_per_period_min": int(per_period.min()),
+        "impacts_per_period_max": int(per_period.max()),
+        "non_impact_events": other_events,
+        "min_rebound_speed_over_velocity_scale": _min_rebound(res, system),
+        "wall_s": wall,
+    }
+    if res.final_mode != 0 or other_events or per_period.min() != per_period.max():
+        raise RuntimeError(
+            f"{case.name}: the reference does not keep a steady impacting motion: {info}"
+        )
+    pos = np.column_stack([res.output(name) for name in case.positions])
+    return Run(pos, int(impacts.shape[0]), res.counters["rhs_evaluations"], wall), info
+
+
+def _min_rebound(res: Any, system: System) -> float:
+    """Smallest post-impact speed (relative to the velocity scale): far from chattering?"""
+    idx = res.events.of_kind("impact")
+    if idx.shape[0] == 0:
+        return math.nan
+    st = res.events.state[idx]
+    speed = np.hypot(st[:, 2], st[:, 3]) if st.shape[1] >= 4 else np.abs(st[:, 1])
+    return float(speed.min() / system.velocity_scale)
+
+
+def choose_rtol(
+    kind: str, case: Case, system: System, t_eval: np.ndarray, ref: Run, target: float
+) -> tuple[float, list[dict[str, Any]]]:
+    """Loosest rtol of the scan whose error and the next tighter one's are <= target."""
+    scan: list[dict[str, Any]] = []
+    run_once(kind, case, system, t_eval, RTOL_SCAN[0])  # warm-up (numba compilation)
+    chosen = None
+    for i, rtol in enumerate(RTOL_SCAN):
+        run = run_once(kind, case, system, t_eval, rtol)
+        err = max_error(run.positions, ref.positions)
+        scan.append({"rtol": rtol, "error": err, "impacts": run.impacts, "wall_s": run.wall_s})
+        ok = err <= target
+        if ok and chosen is None:
+            chosen = i
+        elif not ok:
+            chosen = None
+        if chosen is not None and (i > chosen or i == len(RTOL_SCAN) - 1):
+            return RTOL_SCAN[chosen], scan
+    raise RuntimeError(f"{kind} on {case.name}: no rtol in the scan reaches error <= {target:g}")
+
+
+def time_runs(
+    kind: str, case: Case, system: System, t_eval: np.ndarray, rtol: float, repeats: int
+) -> tuple[list[float], Run]:
+    """Wall times after one warm-up run: at least ``repeats`` runs and ~MIN_TIMED_S of them."""
+    last = run_once(kind, case, system, t_eval, rtol)
+    walls: list[float] = []
+    while len(walls) < repeats or (sum(walls) < MIN_TIMED_S and len(walls) < MAX_RUNS):
+        last = run_once(kind, case, system, t_eval, rtol)
+        walls.append(last.wall_s)
+    return walls, last
+
+
+def bench_case(case: Case, periods: int, repeats: int, target: float) -> dict[str, Any]:
+    start = time.perf_counter()
+    state = settle(case)
+    system = case.system(state)
+    period = system.forcing_period
+    t_eval = period * np.arange(periods + 1)
+    ref, ref_info = check_reference(case, system, t_eval)
+    out: dict[str, Any] = {
+        "name": case.name,
+        "description": case.description,
+        "params": case.params,
+        "initial_state": dict(zip(case.state_keys, map(float, state), strict=True)),
+        "forcing_period_s": period,
+        "periods": periods,
+        "positions": list(case.positions),
+        "state_scale": system.state_scale.tolist(),
+        "reference": ref_info,
+        "integrators": {},
+    }
+    for kind in INTEGRATORS:
+        rtol, scan = choose_rtol(kind, case, system, t_eval, ref, target)
+        walls, run = time_runs(kind, case, system, t_eval, rtol, repeats)
+        median = statistics.median(walls)
+        out["integrators"][kind] = {
+            "rtol": rtol,
+            "atol_relative_to_state_scale": rtol,
+            "error": max_error(run.positions, ref.positions),
+            "impacts": run.impacts,
+            "rhs_evaluations_per_period": run.rhs_evaluations / periods,
+            "runs": len(walls),
+            "wall_median_s": median,
+            "wall_min_s": min(walls),
+            "wall_max_s": max(walls),
+            "wall_per_period_s": median / periods,
+            "scan": scan,
+        }
+        err = out["integrators"][kind]["error"]
+        print(
+            f"  {case.name:8s} {kind:10s} rtol {rtol:8.2e}  error {err:.2e}"
+            f"  {median / periods * 1e6:10.1f} us/period  ({len(walls)} runs)",
+            file=sys.stderr,
+            flush=True,
+        )
+    ints = out["integrators"]
+    fast = ints["fast"]["wall_median_s"]
+    out["speedup_fast_vs_scipy_loop"] = ints["scipy_loop"]["wall_median_s"] / fast
+    out["speedup_fast_vs_accurate"] = ints["accurate"]["wall_median_s"] / fast
+    out["target_fast_vs_scipy_loop"] = 100.0
+    out["target_met"] = out["speedup_fast_vs_scipy_loop"] >= 100.0
+    out["bench_wall_s"] = time.perf_counter() - start
+    return out
+
+
+# ---------------------------------------------------------------------------- output
+def _fmt_time(s: float) -> str:
+    if s >= 1e-3:
+        return f"{s * 1e3:.3g} ms"
+    return f"{s * 1e6:.3g} µs"
+
+
+def markdown(report: dict[str, Any]) -> str:
+    meta = report["meta"]
+    lines = [
+        "# Engine benchmark: wall time per forcing period at equal accuracy",
+        "",
+        f"Target error {meta['target_error']:g} (max stroboscopic position error vs "
+        f"`accurate` at rtol {REFERENCE_RTOL:g}, normalised by the reference's max |position|), "
+        f"{meta['periods']} forcing periods from a state on the attractor; median of "
+        f">= {meta['repeats']} runs after a warm-up.  {meta['date']}, {meta['cpu_count']} CPUs, "
+        f"Python {meta['python']}, numpy {meta['numpy']}, scipy {meta['scipy']}, "
+        f"numba {meta['numba']}, commit {meta['git_commit'][:10]}.",
+        "",
+        "| case | integrator | rtol | error | impacts | rhs calls / period | wall time / period "
+        "| time / `fast` time |",
+        "|---|---|---:|---:|---:|---:|---:|---:|",
+    ]
+    for case in report["cases"]:
+        fast = case["integrators"]["fast"]["wall_median_s"]
+        for kind in INTEGRATORS:
+            r = case["integrators"][kind]
+            lines.append(
+                f"| {case['name']} | {LABELS[kind]} | {r['rtol']:.2g} | {r['error']:.2g} | "
+                f"{r['impacts']} | {r['rhs_evaluations_per_period']:.0f} | "
+                f"{_fmt_time(r['wall_per_period_s'])} | "
+                f"{r['wall_median_s'] / fast:.3g}x |"
+            )
+    lines += ["", "| case | `fast` vs scipy loop | `fast` vs `accurate` | target (>= 100x) |"]
+    lines += ["|---|---:|---:|---|"]
+    for case in report["cases"]:
+        met = "met" if case["target_met"] else "NOT met"
+        lines.append(
+            f"| {case['name']} | {case['speedup_fast_vs_scipy_loop']:.3g}x | "
+            f"{case['speedup_fast_vs_accurate']:.3g}x | {met} |"
+        )
+    lines.append("")
+    for case in report["cases"]:
+        lines.append(f"- **{case['name']}**: {case['description']}.")
+    lines.append("")
+    return "\n".join(lines)
+
+
+def _git_commit() -> str:
+    try:
+        return subprocess.run(
+            ["git", "rev-parse", "HEAD"], cwd=REPO, capture_output=True, text=True, check=True
+        ).stdout.strip()
+    except (OSError, subprocess.CalledProcessError):
+        return "unknown"
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--out", type=Path, default=DEFAULT_OUT, help="JSON result file")
+    ap.add_argument("--md", type=Path, default=DEFAULT_MD, help="Markdown table file")
+    ap.add_argument("--periods", type=int, default=50, help="forcing periods per run")
+    ap.add_argument("--repeats", type=int, default=5, help="minimum timed runs per integrator")
+    ap.add_argument("--target", type=float, default=1e-8, help="error every integrator must reach")
+    ap.add_argument(
+        "--cases", nargs="+", choices=[c.name for c in CASES], default=[c.name for c in CASES]
+    )
+    args = ap.parse_args(argv)
+    if args.periods < 1 or args.repeats < 1:
+        ap.error("--periods and --repeats must be >= 1")
+
+    start = time.perf_counter()
+    cases = [
+        bench_case(c, args.periods, args.repeats, args.target)
+        for c in CASES
+        if c.name in args.cases
+    ]
+    report = {
+        "meta": {
+            "date": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
+            "git_commit": _git_commit(),
+            "python": platform.python_version(),
+            "numpy": np.__version__,
+            "scipy": scipy.__version__,
+            "numba": numba.__version__,
+            "platform": platform.platform(),
+            "cpu_count": os.cpu_count(),
+            "periods": args.periods,
+            "repeats": args.repeats,
+            "target_error": args.target,
+            "reference": f"simulate(engine='accurate', rtol={REFERENCE_RTOL:g})",
+            "rtol_scan": list(RTOL_SCAN),
+            "rtol_rule": "loosest rtol with error <= target whose next tighter rtol also passes",
+            "total_wall_s": None,
+        },
+        "cases": cases,
+    }
+    report["meta"]["total_wall_s"] = time.perf_counter() - start
+    table = markdown(report)
+    for path, text in ((args.out, json.dumps(report, indent=2) + "\n"), (args.md, table)):
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(text, encoding="utf-8")
+    print(table)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

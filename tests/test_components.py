@@ -1,0 +1,174 @@
+"""Component kernels against independent figures (published values, closed forms)."""
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from rubcosim.components.bearing import capone_force, linear_bearing_force, oilfilm_force, oilfilm_sigma
+from rubcosim.components.controller import delay_at, feedback_force
+from rubcosim.components.oscillator import elastic_stop_force, free_acceleration, impact_velocity
+from rubcosim.components.rotor import free_whirl, jeffcott_force, shaft_force, unbalance_force
+from rubcosim.components.stator import (
+    constraint_normal_force,
+    contact_geometry,
+    damping_from_restitution,
+    penalty_contact_force,
+    rigid_impact,
+    rub_onset_speed_ratios,
+    slip_speed,
+)
+
+
+def test_rub_onset_speeds_match_published_values():
+    lo, hi = rub_onset_speed_ratios(0.05, 0.5)
+    assert lo == pytest.approx(0.8206, abs=5e-5)
+    assert hi == pytest.approx(1.4071, abs=5e-5)
+
+
+def test_rub_onset_none_when_whirl_never_reaches_stator():
+    assert rub_onset_speed_ratios(0.5, 0.5) == ()
+    # e > d: the whirl reaches the stator once and for all at high speed
+    assert len(rub_onset_speed_ratios(0.05, 1.5)) == 1
+
+
+def test_free_whirl_closed_form():
+    amp, phase = free_whirl(2.0, 0.0, 800.0, 1e-3, 20.0)  # at resonance without damping
+    assert math.isinf(amp)
+    assert phase == pytest.approx(math.pi / 2)
+    amp, phase = free_whirl(1.0, 0.0, 1.0, 1e-3, 1e3)  # far above: A -> e, phase -> pi
+    assert amp == pytest.approx(1e-3, rel=1e-5)
+    assert phase == pytest.approx(math.pi)
+
+
+def test_jeffcott_and_shaft_forces():
+    fx, fy = jeffcott_force(0.0, 1e-3, 0.0, 0.0, 0.1, 2.0, 3.0, 100.0, 0.0, 0.0, 9.81)
+    assert fx == pytest.approx(-0.1)
+    assert fy == pytest.approx(-0.3 - 2.0 * 9.81)
+    ux, uy = unbalance_force(math.pi / 2 / 10.0, 1.0, 1e-3, 10.0)
+    assert ux == pytest.approx(0.0, abs=1e-15)
+    assert uy == pytest.approx(0.1)
+    sx, sy = shaft_force(1.0, 0.0, 0.0, 0.0, 0.5, 0.0, 0.0, 0.0, 10.0, 0.0)
+    assert (sx, sy) == (-5.0, 0.0)
+
+
+def test_frictionless_impact_keeps_tangential_and_scales_normal():
+    n = np.array([0.6, 0.8])
+    t = np.array([-0.8, 0.6])
+    v = 2.0 * n + 0.7 * t
+    vx, vy = rigid_impact(v[0], v[1], n[0], n[1], 0.6, 0.0, 0.0, 0.0)
+    assert vx * n[0] + vy * n[1] == pytest.approx(-1.2)
+    assert vx * t[0] + vy * t[1] == pytest.approx(0.7)
+
+
+def test_receding_disc_is_not_changed():
+    assert rigid_impact(-1.0, 0.0, 1.0, 0.0, 0.5, 0.3, 0.1, 100.0) == (-1.0, 0.0)
+
+
+def test_friction_impulse_opposes_slip_and_can_stop_it():
+    # slip positive (spin): the tangential speed drops by mu (1 + r) vn
+    vx, vy = rigid_impact(1.0, 0.0, 1.0, 0.0, 0.5, 0.2, 0.05, 100.0)
+    assert vy == pytest.approx(-0.2 * 1.5 * 1.0)
+    # a large impulse stops the slip exactly (vs = vt + Rd w = 0), never reverses it
+    vx, vy = rigid_impact(1.0, 0.01, 1.0, 0.0, 0.5, 0.9, 0.0, 0.0)
+    assert vy == pytest.approx(0.0)
+
+
+@settings(max_examples=300, deadline=None)
+@given(
+    vx=st.floats(-10, 10),
+    vy=st.floats(-10, 10),
+    angle=st.floats(0, 2 * math.pi),
+    r=st.floats(0, 1),
+    mu=st.floats(0, 2),
+    rd_w=st.floats(-5, 5),
+)
+def test_impact_never_creates_kinetic_energy(vx, vy, angle, r, mu, rd_w):
+    nx, ny = math.cos(angle), math.sin(angle)
+    wx, wy = rigid_impact(vx, vy, nx, ny, r, mu, rd_w, 1.0)
+    # energy of the motion relative to the contact point (normal speed, slip speed)
+    vs0 = slip_speed(vx, vy, nx, ny, rd_w, 1.0)
+    vs1 = slip_speed(wx, wy, nx, ny, rd_w, 1.0)
+    vn0 = vx * nx + vy * ny
+    vn1 = wx * nx + wy * ny
+    assert vn1**2 + vs1**2 <= vn0**2 + vs0**2 + 1e-12 * (1 + vx * vx + vy * vy)
+    # without spin the plain kinetic energy of the disc never grows
+    wx0, wy0 = rigid_impact(vx, vy, nx, ny, r, mu, 0.0, 0.0)
+    assert wx0**2 + wy0**2 <= vx * vx + vy * vy + 1e-12 * (1 + vx * vx + vy * vy)
+
+
+def test_penalty_force_is_chu_zhang_form_for_positive_slip():
+    kc, d, mu = 5e6, 1e-4, 0.2
+    rx, ry = 0.9e-4, 0.7e-4
+    fx, fy, fn = penalty_contact_force(rx, ry, 0.0, 0.0, d, kc, 0.0, mu, 0.05, 300.0)
+    e = math.hypot(rx, ry)
+    factor = -kc * (1 - d / e)
+    assert fx == pytest.approx(factor * (rx - mu * ry), rel=1e-12)
+    assert fy == pytest.approx(factor * (mu * rx + ry), rel=1e-12)
+    assert fn == pytest.approx(kc * (e - d))
+    assert penalty_contact_force(0.5e-4, 0.0, 1.0, 1.0, d, kc, 1.0, mu, 0.0, 0.0) == (0.0, 0.0, 0.0)
+
+
+def test_contact_geometry_at_centre_is_safe():
+    assert contact_geometry(0.0, 0.0) == (0.0, 1.0, 0.0)
+
+
+def test_constraint_normal_force_balances_centripetal_load():
+    # disc sliding on r = d at tangential speed vt, no other force: N = m vt^2 / d
+    assert constraint_normal_force(0.0, 0.0, 1.0, 0.0, 2.0, 0.0, 0.5, 0.5, 3.0, 10.0) == pytest.approx(24.0)
+
+
+@pytest.mark.parametrize("r", [0.0, 0.3, 0.8, 1.0])
+def test_damping_from_restitution(r):
+    kc, m = 1e6, 2.0
+    cc = damping_from_restitution(r, kc, m)
+    zeta = cc / (2 * math.sqrt(kc * m))
+    if r == 0.0:
+        assert zeta == pytest.approx(1.0)
+    elif r == 1.0:
+        assert cc == 0.0
+    else:
+        assert math.exp(-zeta * math.pi / math.sqrt(1 - zeta**2)) == pytest.approx(r, rel=1e-12)
+
+
+@pytest.mark.parametrize("eps", [0.1, 0.3, 0.5, 0.7, 0.9])
+def test_capone_matches_ocvirk_static_journal(eps):
+    fx, fy = capone_force(eps, 0.0, 0.0, 0.0)
+    assert fx == pytest.approx(-4 * eps**2 / (1 - eps**2) ** 2, rel=1e-12)
+    assert fy == pytest.approx(math.pi * eps / (1 - eps**2) ** 1.5, rel=1e-12)
+
+
+@pytest.mark.parametrize("x,y", [(0.3, 0.0), (0.1, -0.5), (-0.6, 0.2)])
+def test_capone_half_speed_whirl_carries_no_load(x, y):
+    fx, fy = capone_force(x, y, -y / 2, x / 2)
+    assert abs(fx) < 1e-12 and abs(fy) < 1e-12
+
+
+def test_capone_outside_clearance_is_nan():
+    assert all(math.isnan(f) for f in capone_force(1.0, 0.1, 0.0, 0.0))
+
+
+def test_oilfilm_dimensional_scaling():
+    sigma = oilfilm_sigma(0.02, 300.0, 0.025, 0.02, 1e-4)
+    assert sigma == pytest.approx(0.02 * 300 * 0.025 * 0.02 * 250**2 * 0.4**2)
+    fx, fy = oilfilm_force(0.5e-4, 0.0, 0.0, 0.0, 300.0, 1e-4, sigma)
+    ref = capone_force(0.5, 0.0, 0.0, 0.0)
+    assert (fx, fy) == pytest.approx((sigma * ref[0], sigma * ref[1]))
+    assert linear_bearing_force(1.0, 2.0, 3.0, 4.0, 10.0, 1.0) == (-13.0, -24.0)
+
+
+def test_controller_kernels():
+    assert delay_at(0.0, 0.1, 0.01, 5.0) == pytest.approx(0.1)
+    assert delay_at(math.pi / 10, 0.1, 0.01, 5.0) == pytest.approx(0.11)
+    assert feedback_force(2.0, 1.0, 1.0) == 0.0
+    assert feedback_force(2.0, 1.0, 1.5) == pytest.approx(1.0)
+
+
+def test_oscillator_kernels():
+    assert free_acceleration(0.0, 1.0, 2.0, 3.0, 0.5, 1.0, 4.0, 1.0) == pytest.approx(4 - 1 - 3 - 1)
+    assert impact_velocity(2.0, 0.7) == pytest.approx(-1.4)
+    assert elastic_stop_force(1.5, 3, 1.0, 10.0) == pytest.approx(-5.0)
+    assert elastic_stop_force(-1.5, 3, 1.0, 10.0) == 0.0
+    assert elastic_stop_force(-1.5, 4, 1.0, 10.0) == pytest.approx(5.0)
