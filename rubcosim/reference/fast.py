@@ -197,8 +197,12 @@ def integrate(y0, mode, t0, t_end, p, ip, rtol, atol, max_step, t_eval, rec, ev_
                 rk_step(t, y, f, h, mode, p, ip, hist, yd, K, y_new, f_new, cnt)
                 err = error_norm(K, h, y, y_new, rtol, atol)
                 if not math.isfinite(err):
-                    cnt[C_STATUS] = STATUS_NONFINITE
-                    break
+                    # A trial stage left the model's domain (e.g. the journal
+                    # outside the oil film): reject and shrink, as scipy does.
+                    h_abs *= MIN_FACTOR
+                    rejected = True
+                    cnt[C_REJECTED] += 1
+                    continue
                 if err < 1.0:
                     if err == 0.0:
                         factor = MAX_FACTOR
@@ -212,6 +216,9 @@ def integrate(y0, mode, t0, t_end, p, ip, rtol, atol, max_step, t_eval, rec, ev_
                 rejected = True
                 cnt[C_REJECTED] += 1
             if cnt[C_STATUS] != STATUS_OK:
+                break
+            if not np.all(np.isfinite(y_new)):
+                cnt[C_STATUS] = STATUS_NONFINITE
                 break
             cnt[C_STEPS] += 1
             dense_coefficients(t, h, y, y_new, f_new, K, mode, p, ip, hist, yd, F, cnt)
