@@ -19,7 +19,7 @@ from . import system as S
 
 # Relative size of the rebound normal speed (to the system's velocity scale)
 # below which chattering is declared over and the contact becomes sustained.
-DEFAULT_CHATTER_TOL = 1e-8
+DEFAULT_CHATTER_TOL = 1e-10
 
 
 @dataclass

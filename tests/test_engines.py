@@ -1,0 +1,177 @@
+"""Engines: fast vs accurate on every scenario, published impact-oscillator orbits, delays."""
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from rubcosim.reference import build_system, make_unit, simulate
+from rubcosim.runner import run_scenario
+from rubcosim.scenario import load_scenario
+
+SCENARIOS = sorted((Path(__file__).parents[1] / "scenarios").glob("*.toml"))
+
+
+def relative_errors(a, b):
+    """Per output: max |a - b| over the grid divided by max |b|."""
+    scale = np.nanmax(np.abs(b.outputs), axis=0)
+    scale[scale == 0.0] = 1.0
+    return np.nanmax(np.abs(a.outputs - b.outputs), axis=0) / scale
+
+
+@pytest.mark.parametrize("path", SCENARIOS, ids=lambda p: p.stem)
+def test_fast_agrees_with_accurate_on_every_scenario(path):
+    scenario = load_scenario(path)
+    fast = run_scenario(scenario, "fast").result
+    accurate = run_scenario(scenario, "accurate").result
+    assert fast.ok and accurate.ok
+    assert not np.isnan(fast.outputs).any()
+    errors = relative_errors(fast, accurate)
+    worst = int(np.argmax(errors))
+    assert errors[worst] <= 1e-8, f"{fast.output_names[worst]}: {errors[worst]:.3g}"
+
+
+def test_scenario_list_is_complete():
+    names = {p.stem for p in SCENARIOS}
+    assert {
+        "jeffcott_rigid_stator",
+        "jeffcott_offset_rigid_stator",
+        "jeffcott_elastic_stator",
+        "jeffcott_elastic_casing",
+        "two_mass_oilfilm_rub",
+        "jeffcott_delayed_feedback",
+        "impact_oscillator_linear",
+        "impact_oscillator_symmetric",
+        "impact_duffing",
+    } <= names
+
+
+# Budd & Dux (1994): x'' + x = cos(w t), stop at x = 0, r = 0.8; impact speed of
+# the (1, n) orbit, n forcing periods between impacts.
+BUDD_DUX = [(1.5, 1, 1.52708), (2.0, 1, 4.0 / (3.0 * 0.2)), (4.0, 2, 2.6667), (6.0, 3, 1.7143)]
+
+
+@pytest.mark.parametrize("w,n,speed", BUDD_DUX)
+def test_linear_impact_oscillator_reaches_published_orbits(w, n, speed):
+    osc = make_unit(
+        "oscillator",
+        "impact_oscillator",
+        dict(linear_stiffness=1.0, forcing_amplitude=1.0, forcing_frequency=w, barrier=0.0, restitution=0.8, x0=-1.0),
+    )
+    period = 2 * math.pi / w
+    res = simulate(build_system({"oscillator": osc}), 300 * period, output_step=period, engine="fast", rtol=1e-11)
+    assert res.ok
+    impacts = res.events.of_kind("impact")
+    pre_impact_speed = res.events.state[impacts, 1] / -0.8
+    assert pre_impact_speed[-1] == pytest.approx(speed, rel=2e-4 if speed != 4.0 / 0.6 else 1e-9)
+    assert np.diff(res.events.t[impacts][-5:]) == pytest.approx(n * period, rel=1e-9)
+
+
+def duffing(x0):
+    osc = make_unit(
+        "oscillator",
+        "impact_oscillator",
+        dict(linear_stiffness=1.0, damping=0.1, cubic_stiffness=1.0, forcing_amplitude=1.0, forcing_frequency=2.0, barrier=1.0, restitution=0.8, x0=x0),
+    )
+    period = math.pi
+    t_eval = period * np.arange(150, 200)
+    return simulate(build_system({"oscillator": osc}), 200 * period, t_eval=t_eval, engine="fast"), period
+
+
+def test_impact_duffing_has_coexisting_impacting_and_free_period_one_orbits():
+    hit, period = duffing(-2.0)
+    free, _ = duffing(0.0)
+    for res in (hit, free):
+        assert res.ok
+        x = res.output("oscillator.x")
+        assert np.ptp(x) < 1e-9  # period 1 on the stroboscopic section
+    late_hits = hit.events.t[hit.events.t > 150 * period]
+    assert len(late_hits) == 50  # one impact per period
+    assert free.counters["impacts"] == 0
+    assert abs(hit.output("oscillator.x")[-1] - free.output("oscillator.x")[-1]) > 0.1
+
+
+M, K, Z, D = 10.0, 1.0e6, 0.05, 1.0e-4
+WN = math.sqrt(K / M)
+
+
+def whirl_rotor(s, **extra):
+    w = s * WN
+    amp = 0.5 * D * s * s / math.hypot(1 - s * s, 2 * Z * s)
+    ph = math.atan2(2 * Z * s, 1 - s * s)
+    params = dict(mass=M, damping=2 * Z * M * WN, stiffness=K, eccentricity=0.5 * D, speed=w, x0=amp * math.cos(ph), y0=-amp * math.sin(ph), vx0=amp * w * math.sin(ph), vy0=amp * w * math.cos(ph))
+    params.update(extra)
+    return make_unit("rotor", "jeffcott", params), w, amp
+
+
+@pytest.mark.parametrize("feedback", ["position", "velocity"])
+def test_pyragas_force_vanishes_on_a_delay_periodic_orbit(feedback):
+    rotor, w, amp = whirl_rotor(0.7)
+    period = 2 * math.pi / w
+    gain = 1e5 if feedback == "position" else 300.0
+    ctl = make_unit("controller", "delayed_feedback", dict(gain=gain, delay_periods=1, t_on=2 * period, feedback=feedback))
+    res = simulate(build_system({"rotor": rotor, "controller": ctl}), 8 * period, output_step=period / 50, engine="fast", rtol=1e-12)
+    assert res.ok
+    u = np.hypot(res.output("controller.ux"), res.output("controller.uy"))
+    scale = gain * amp * (1.0 if feedback == "position" else w)
+    assert np.all(u <= 1e-8 * scale)
+
+
+def test_delay_history_reaches_back_past_the_start_and_across_many_steps():
+    # delay of 1.5 periods, control on from t = 0: before t = tau the delayed
+    # state is the initial state, after it the recorded trajectory itself.
+    rotor, w, amp = whirl_rotor(0.7, x0=0.0, y0=0.0, vx0=0.0, vy0=0.0)
+    tau = 1.5 * 2 * math.pi / w
+    gain = 2e5
+    ctl = make_unit("controller", "delayed_feedback", dict(gain=gain, delay=tau))
+    system = build_system({"rotor": rotor, "controller": ctl})
+    step = tau / 150
+    res = simulate(system, 4 * tau, output_step=step, engine="accurate", rtol=1e-12)
+    assert res.ok and res.counters["steps"] > 100
+    x = res.output("rotor.x")
+    ux = res.output("controller.ux")
+    before = res.t < tau - 1e-12
+    assert np.allclose(ux[before], gain * (0.0 - x[before]), rtol=0, atol=1e-9 * gain * amp)
+    lag = 150
+    assert np.allclose(ux[lag:], gain * (x[:-lag] - x[lag:]), rtol=0, atol=1e-8 * gain * amp)
+
+
+@pytest.mark.parametrize("engine", ["fast", "accurate"])
+def test_variable_delay_uses_the_modulated_delay(engine):
+    rotor, w, amp = whirl_rotor(0.7, x0=0.0, y0=0.0, vx0=0.0, vy0=0.0)
+    period = 2 * math.pi / w
+    eps, nu, gain = 0.2 * period, 3.0, 2e5
+    ctl = make_unit("controller", "delayed_feedback", dict(gain=gain, delay_periods=1, modulation_amplitude=eps, modulation_frequency=nu, t_on=3 * period))
+    system = build_system({"rotor": rotor, "controller": ctl})
+    t = np.linspace(4 * period, 6 * period, 97)
+    res = simulate(system, 6 * period, t_eval=t, engine=engine, rtol=1e-12)
+    # the recorded times do not change the steps: read x at t - tau(t) from a second run
+    t_delayed = t - (period + eps * np.sin(nu * t))
+    order = np.argsort(t_delayed)
+    res_d = simulate(system, 6 * period, t_eval=t_delayed[order], engine=engine, rtol=1e-12)
+    x_delayed = np.empty_like(t)
+    x_delayed[order] = res_d.output("rotor.x")
+    expected = gain * (x_delayed - res.output("rotor.x"))
+    assert np.allclose(res.output("controller.ux"), expected, rtol=0, atol=1e-9 * gain * amp)
+
+
+def test_impacts_with_delay_feedback_agree_between_engines():
+    scenario = load_scenario(Path(__file__).parents[1] / "scenarios" / "jeffcott_delayed_feedback.toml", ["sim.t_end=0.3"])
+    fast = run_scenario(scenario, "fast").result
+    accurate = run_scenario(scenario, "accurate").result
+    assert fast.counters["impacts"] == accurate.counters["impacts"] > 0
+    assert relative_errors(fast, accurate).max() <= 1e-8
+
+
+def test_simulate_rejects_bad_arguments():
+    rotor, _, _ = whirl_rotor(0.7)
+    system = build_system({"rotor": rotor})
+    with pytest.raises(ValueError, match="engine"):
+        simulate(system, 1.0, engine="euler")
+    with pytest.raises(ValueError, match="sim.t_end"):
+        simulate(system, 0.0)
+    with pytest.raises(ValueError, match="sim.rtol"):
+        simulate(system, 1.0, rtol=1e-20)
+    with pytest.raises(ValueError, match="sim.atol"):
+        simulate(system, 1.0, atol=0.0)
