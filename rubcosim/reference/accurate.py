@@ -23,9 +23,12 @@ from .core import (
     STATUS_STEP_TOO_SMALL,
     after_step,
     full_rhs_alloc,
+    needs_dense,
     next_breakpoint,
     record_point,
+    sides_from,
     start_sides,
+    step_end_events,
 )
 from .system import N_DELAYED, N_EVENTS
 
@@ -40,6 +43,9 @@ def integrate(y0, mode, t0, t_end, p, ip, rtol, atol, max_step, t_eval, rec, ev_
     side = np.zeros(N_EVENTS, dtype=np.int64)
     dirs = np.zeros(N_EVENTS, dtype=np.int64)
     rates = np.zeros(N_EVENTS, dtype=np.int64)
+    g_b = np.empty(N_EVENTS)
+    dirs_b = np.zeros(N_EVENTS, dtype=np.int64)
+    rates_b = np.zeros(N_EVENTS, dtype=np.int64)
     y_next = np.empty(n)
     work = np.empty(n)
     forced_slot, forced_side = -1, 0
@@ -65,8 +71,15 @@ def integrate(y0, mode, t0, t_end, p, ip, rtol, atol, max_step, t_eval, rec, ev_
                 break
             del message
             cnt[C_STEPS] += 1
+            step_end_events(solver.t, solver.y, mode, p, ip, hist, yd, g_b, dirs_b, rates_b)
+            if not needs_dense(solver.t, hist, g_a, side, dirs, rates, g_b, t_eval, cnt):
+                g_a[:] = g_b
+                sides_from(g_b, side)
+                y = solver.y.copy()
+                t = solver.t
+                continue
             dense = solver.dense_output()
-            t_next, mode_next, fs, fside = after_step(solver.t_old, solver.t, dense.y_old, solver.y, dense.F, mode, p, ip, hist, queue, qmeta, g_a, side, dirs, rates, t_eval, rec, ev_t, ev_kind, ev_slot, ev_mode, ev_y, cnt, y_next, work)
+            t_next, mode_next, fs, fside = after_step(solver.t_old, solver.t, dense.y_old, solver.y, dense.F, mode, p, ip, hist, queue, qmeta, g_a, side, dirs, rates, g_b, t_eval, rec, ev_t, ev_kind, ev_slot, ev_mode, ev_y, cnt, y_next, work)
             y = y_next.copy()
             t = t_next
             if fs >= 0 or mode_next != mode:

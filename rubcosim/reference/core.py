@@ -137,16 +137,20 @@ def uses_history(p, ip):
     return ip[IP_FAMILY] == FAMILY_ROTOR and ip[IP_CONTROL] != CONTROL_NONE
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, inline="always")
 def delayed_state(t, p, ip, hist, yd):
-    if uses_history(p, ip) and t >= p[P_TON]:
+    """Delayed disc state into ``yd``.  ``hist is None`` (no controller) compiles
+    to nothing: the engines are specialised for systems without delay."""
+    if hist is None:
+        return
+    if t >= p[P_TON]:
         history_eval(hist, t - current_delay(t, p), yd)
     else:
         for c in range(N_DELAYED):
             yd[c] = 0.0
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, inline="always")
 def full_rhs(t, y, mode, p, ip, hist, yd, dy):
     """Right-hand side with the delayed state looked up in the history."""
     delayed_state(t, p, ip, hist, yd)
@@ -266,18 +270,14 @@ def locate(slot, sgn, ta, fa, tb, fb, t_old, h, y_old, F, mode, p, ip, hist, ybu
 
 
 @nb.njit(cache=True)
-def find_event(t_a, t_b, t_old, h, y_old, F, y_b, mode, p, ip, hist, g_a, side_a, dirs_a, rates_a, g_b, ybuf, yd, g, dirs, rates):
+def find_event(t_a, t_b, t_old, h, y_old, F, mode, p, ip, hist, g_a, side_a, dirs_a, rates_a, g_b, ybuf, yd, g, dirs, rates):
     """Earliest event in (t_a, t_b] of the step's dense output, or (-1, t_b).
 
-    ``side_a[k]`` is the side (+1/-1) of slot k at t_a; ``g_b`` receives the
-    event functions at t_b.  A contact that opens and closes inside the step
+    ``side_a[k]`` is the side (+1/-1) of slot k at t_a, ``g_b`` the event
+    functions at t_b.  A contact that opens and closes inside the step
     (grazing) is found through the rate companion: the extremum of g is
     located first and g is checked there.
     """
-    delayed_state(t_b, p, ip, hist, yd)
-    dirs_b = np.empty(N_EVENTS, dtype=np.int64)
-    rates_b = np.empty(N_EVENTS, dtype=np.int64)
-    events(t_b, y_b, yd, mode, p, ip, g_b, dirs_b, rates_b)
     best_k = -1
     best_t = t_b
     for k in range(N_EVENTS):
@@ -316,6 +316,32 @@ def find_event(t_a, t_b, t_old, h, y_old, F, y_b, mode, p, ip, hist, g_a, side_a
             best_k = k
             best_t = te
     return best_k, best_t
+
+
+@nb.njit(cache=True)
+def event_candidate(g_a, side_a, dirs_a, rates_a, g_b):
+    """Whether the step may hold an event: a sign change, or a rate companion
+    that changes sign (a possible grazing contact).  Cheap; no dense output."""
+    for k in range(N_EVENTS):
+        d = dirs_a[k]
+        if d == 0:
+            continue
+        sgn = 1.0 if d == -1 else (-1.0 if d == 1 else float(side_a[k]))
+        if sgn == 0.0:
+            continue
+        if sgn * g_b[k] <= 0.0:
+            return True
+        j = rates_a[k]
+        if j >= 0 and sgn * g_a[j] < 0.0 and sgn * g_b[j] > 0.0:
+            return True
+    return False
+
+
+@nb.njit(cache=True)
+def step_end_events(t, y, mode, p, ip, hist, yd, g_b, dirs_b, rates_b):
+    """Event functions at the end of a step (same mode as at its start)."""
+    delayed_state(t, p, ip, hist, yd)
+    events(t, y, yd, mode, p, ip, g_b, dirs_b, rates_b)
 
 
 @nb.njit(cache=True)
@@ -380,8 +406,19 @@ MAX_SAME_TIME_EVENTS = 64
 
 
 @nb.njit(cache=True)
-def after_step(t_a, t_b, y_old, y_b, F, mode, p, ip, hist, queue, qmeta, g_a, side, dirs, rates, t_eval, rec, ev_t, ev_kind, ev_slot, ev_mode, ev_y, cnt, y_out, work):
-    """Process an accepted step [t_a, t_b] with dense output F.
+def needs_dense(t_b, hist, g_a, side, dirs, rates, g_b, t_eval, cnt):
+    """Whether a step needs its dense output: delay history, outputs or a possible event."""
+    if hist is not None:
+        return True
+    if cnt[C_EVAL] < t_eval.shape[0] and t_eval[cnt[C_EVAL]] <= t_b:
+        return True
+    return event_candidate(g_a, side, dirs, rates, g_b)
+
+
+@nb.njit(cache=True)
+def after_step(t_a, t_b, y_old, y_b, F, mode, p, ip, hist, queue, qmeta, g_a, side, dirs, rates, g_b, t_eval, rec, ev_t, ev_kind, ev_slot, ev_mode, ev_y, cnt, y_out, work):
+    """Process an accepted step [t_a, t_b] with dense output F and the event
+    functions ``g_b`` at t_b.
 
     Finds the earliest event, records outputs, extends the delay history and,
     on an event, applies it.  Returns ``(t_next, mode, forced_slot,
@@ -394,13 +431,12 @@ def after_step(t_a, t_b, y_old, y_b, F, mode, p, ip, hist, queue, qmeta, g_a, si
     yd = np.empty(N_DELAYED)
     obuf = np.empty(rec.shape[1])
     g = np.empty(N_EVENTS)
-    g_b = np.empty(N_EVENTS)
     dtmp = np.empty(N_EVENTS, dtype=np.int64)
     rtmp = np.empty(N_EVENTS, dtype=np.int64)
-    k, te = find_event(t_a, t_b, t_a, h, y_old, F, y_b, mode, p, ip, hist, g_a, side, dirs, rates, g_b, ybuf, yd, g, dtmp, rtmp)
+    k, te = find_event(t_a, t_b, t_a, h, y_old, F, mode, p, ip, hist, g_a, side, dirs, rates, g_b, ybuf, yd, g, dtmp, rtmp)
     t_hi = te if k >= 0 else t_b
     cnt[C_EVAL] = record(t_a, t_hi, t_a, h, y_old, F, mode, p, ip, hist, t_eval, cnt[C_EVAL], rec, ybuf, yd, obuf)
-    if uses_history(p, ip):
+    if hist is not None:
         history_push(hist, t_a, h, t_hi, y_old, F, t_hi - max_history_age(p, ip) - h)
     if k < 0:
         for i in range(n):
@@ -423,7 +459,7 @@ def after_step(t_a, t_b, y_old, y_b, F, mode, p, ip, hist, queue, qmeta, g_a, si
     cnt[C_EVENTS] += 1
     if kind == KIND_IMPACT:
         cnt[C_IMPACTS] += 1
-        if uses_history(p, ip):
+        if hist is not None:
             queue_push(queue, qmeta, delayed_arrival(te, p))
     if te - t_a <= 4.0 * np.finfo(np.float64).eps * max(1.0, abs(te)):
         cnt[C_SAME_TIME] += 1

@@ -26,9 +26,12 @@ from .core import (
     STATUS_STEP_TOO_SMALL,
     after_step,
     full_rhs,
+    needs_dense,
     next_breakpoint,
     record_point,
+    sides_from,
     start_sides,
+    step_end_events,
 )
 from .system import N_DELAYED, N_EVENTS
 
@@ -82,10 +85,9 @@ def initial_step(t0, y0, f0, t_bound, max_step, rtol, atol, mode, p, ip, hist, y
 
 
 @nb.njit(cache=True)
-def dense_coefficients(t_old, h, y_old, y_new, f_new, K, mode, p, ip, hist, yd, F, cnt):
+def dense_coefficients(t_old, h, y_old, y_new, f_new, K, mode, p, ip, hist, yd, F, ytmp, cnt):
     """DOP853 dense output (scipy's F layout) for the step just taken."""
     n = y_old.shape[0]
-    ytmp = np.empty(n)
     for s in range(N_STAGES + 1, N_EXT):
         for i in range(n):
             acc = 0.0
@@ -107,9 +109,8 @@ def dense_coefficients(t_old, h, y_old, y_new, f_new, K, mode, p, ip, hist, yd, 
 
 
 @nb.njit(cache=True)
-def rk_step(t, y, f, h, mode, p, ip, hist, yd, K, y_new, f_new, cnt):
+def rk_step(t, y, f, h, mode, p, ip, hist, yd, K, y_new, f_new, ytmp, cnt):
     n = y.shape[0]
-    ytmp = np.empty(n)
     for i in range(n):
         K[0, i] = f[i]
     for s in range(1, N_STAGES):
@@ -167,6 +168,10 @@ def integrate(y0, mode, t0, t_end, p, ip, rtol, atol, max_step, t_eval, rec, ev_
     side = np.zeros(N_EVENTS, dtype=np.int64)
     dirs = np.zeros(N_EVENTS, dtype=np.int64)
     rates = np.zeros(N_EVENTS, dtype=np.int64)
+    g_b = np.empty(N_EVENTS)
+    dirs_b = np.zeros(N_EVENTS, dtype=np.int64)
+    rates_b = np.zeros(N_EVENTS, dtype=np.int64)
+    ytmp = np.empty(n)
     forced_slot, forced_side = -1, 0
     obuf = np.empty(rec.shape[1])
     cnt[C_EVAL] = record_point(t, y, mode, p, ip, hist, t_eval, 0, rec, yd, obuf)
@@ -194,7 +199,7 @@ def integrate(y0, mode, t0, t_end, p, ip, rtol, atol, max_step, t_eval, rec, ev_
                     t_new = bound
                 h = t_new - t
                 h_abs = abs(h)
-                rk_step(t, y, f, h, mode, p, ip, hist, yd, K, y_new, f_new, cnt)
+                rk_step(t, y, f, h, mode, p, ip, hist, yd, K, y_new, f_new, ytmp, cnt)
                 err = error_norm(K, h, y, y_new, rtol, atol)
                 if not math.isfinite(err):
                     # A trial stage left the model's domain (e.g. the journal
@@ -221,8 +226,19 @@ def integrate(y0, mode, t0, t_end, p, ip, rtol, atol, max_step, t_eval, rec, ev_
                 cnt[C_STATUS] = STATUS_NONFINITE
                 break
             cnt[C_STEPS] += 1
-            dense_coefficients(t, h, y, y_new, f_new, K, mode, p, ip, hist, yd, F, cnt)
-            t_next, mode_next, fs, fside = after_step(t, t_new, y, y_new, F, mode, p, ip, hist, queue, qmeta, g_a, side, dirs, rates, t_eval, rec, ev_t, ev_kind, ev_slot, ev_mode, ev_y, cnt, y_next, work)
+            step_end_events(t_new, y_new, mode, p, ip, hist, yd, g_b, dirs_b, rates_b)
+            if not needs_dense(t_new, hist, g_a, side, dirs, rates, g_b, t_eval, cnt):
+                # Nothing to record, no delay to feed, no event possible: move on.
+                for i in range(n):
+                    y[i] = y_new[i]
+                    f[i] = f_new[i]
+                for i in range(N_EVENTS):
+                    g_a[i] = g_b[i]
+                sides_from(g_b, side)
+                t = t_new
+                continue
+            dense_coefficients(t, h, y, y_new, f_new, K, mode, p, ip, hist, yd, F, ytmp, cnt)
+            t_next, mode_next, fs, fside = after_step(t, t_new, y, y_new, F, mode, p, ip, hist, queue, qmeta, g_a, side, dirs, rates, g_b, t_eval, rec, ev_t, ev_kind, ev_slot, ev_mode, ev_y, cnt, y_next, work)
             y[:] = y_next
             t = t_next
             if fs >= 0 or mode_next != mode:

@@ -124,12 +124,14 @@ def simulate(
     capacity = history_capacity
     while True:
         rec = np.full((t_eval.shape[0], len(system.output_names)), np.nan)
-        ev_t = np.zeros(max_events)
-        ev_kind = np.zeros(max_events, dtype=np.int64)
-        ev_slot = np.zeros(max_events, dtype=np.int64)
-        ev_mode = np.zeros(max_events, dtype=np.int64)
-        ev_y = np.zeros((max_events, n))
-        hist = new_history(capacity if system.has_delay else 1, t_start, system.y0)
+        # np.empty: only the pages of events that happen are ever touched
+        ev_t = np.empty(max_events)
+        ev_kind = np.empty(max_events, dtype=np.int64)
+        ev_slot = np.empty(max_events, dtype=np.int64)
+        ev_mode = np.empty(max_events, dtype=np.int64)
+        ev_y = np.empty((max_events, n))
+        # No controller, no history: the engines compile a delay-free variant.
+        hist = new_history(capacity, t_start, system.y0) if system.has_delay else None
         queue = np.zeros(capacity if system.has_delay else 1)
         qmeta = np.zeros(3, dtype=np.int64)
         cnt = np.zeros(N_COUNTERS, dtype=np.int64)
@@ -137,7 +139,7 @@ def simulate(
         t0 = time.perf_counter()
         t_reached, mode = integrate(system.y0.copy(), system.mode0, t_start, t_end, system.p, system.ip, rtol, atol_arr, max_step, t_eval, rec, ev_t, ev_kind, ev_slot, ev_mode, ev_y, hist, queue, qmeta, cnt, y_final)
         wall = time.perf_counter() - t0
-        if hist[5][HM_OVERFLOW] and cnt[C_STATUS] == STATUS_OK:
+        if hist is not None and hist[5][HM_OVERFLOW] and cnt[C_STATUS] == STATUS_OK:
             cnt[C_STATUS] = STATUS_HISTORY_OVERFLOW
         if cnt[C_STATUS] == STATUS_HISTORY_OVERFLOW and capacity < 1 << 22:
             capacity *= 8

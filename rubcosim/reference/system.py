@@ -115,17 +115,17 @@ KIND_CONTACT_OFF = 5
 KIND_NAMES = ("breakpoint", "impact", "release", "slip", "contact_on", "contact_off")
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, inline="always")
 def control_active(t: float, p: np.ndarray, ip: np.ndarray) -> bool:
     return ip[IP_FAMILY] == FAMILY_ROTOR and ip[IP_CONTROL] != CONTROL_NONE and t >= p[P_TON]
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, inline="always")
 def current_delay(t: float, p: np.ndarray) -> float:
     return delay_at(t, p[P_TAU0], p[P_EPS], p[P_NU])
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, inline="always")
 def control_force(t: float, y: np.ndarray, yd: np.ndarray, p: np.ndarray, ip: np.ndarray):
     """Controller force on the disc, N (zero before t_on)."""
     if not control_active(t, p, ip):
@@ -135,7 +135,7 @@ def control_force(t: float, y: np.ndarray, yd: np.ndarray, p: np.ndarray, ip: np
     return feedback_force(p[P_KCTL], y[2], yd[2]), feedback_force(p[P_KCTL], y[3], yd[3])
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, inline="always")
 def disc_external_force(t: float, y: np.ndarray, yd: np.ndarray, p: np.ndarray, ip: np.ndarray):
     """Every force on the disc except the stator contact, N."""
     x, yy, vx, vy = y[0], y[1], y[2], y[3]
@@ -151,7 +151,7 @@ def disc_external_force(t: float, y: np.ndarray, yd: np.ndarray, p: np.ndarray, 
     return fx + ux, fy + uy
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, inline="always")
 def stator_centre(y: np.ndarray, p: np.ndarray, ip: np.ndarray):
     """Stator centre position and velocity (the casing moves it)."""
     c = ip[IP_CASING]
@@ -160,7 +160,7 @@ def stator_centre(y: np.ndarray, p: np.ndarray, ip: np.ndarray):
     return p[P_X0], p[P_Y0], 0.0, 0.0
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, inline="always")
 def contact_kinematics(y: np.ndarray, p: np.ndarray, ip: np.ndarray):
     """Distance, normal (nx, ny) and relative normal/tangential speeds of the disc."""
     cx, cy, cvx, cvy = stator_centre(y, p, ip)
@@ -169,7 +169,7 @@ def contact_kinematics(y: np.ndarray, p: np.ndarray, ip: np.ndarray):
     return dist, nx, ny, rvx * nx + rvy * ny, -rvx * ny + rvy * nx
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, inline="always")
 def casing_support_force(y: np.ndarray, p: np.ndarray, ip: np.ndarray):
     c = ip[IP_CASING]
     if c < 0:
@@ -177,7 +177,7 @@ def casing_support_force(y: np.ndarray, p: np.ndarray, ip: np.ndarray):
     return -p[P_KS] * y[c] - p[P_CSC] * y[c + 2], -p[P_KS] * y[c + 1] - p[P_CSC] * y[c + 3]
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, inline="always")
 def contact_normal_force(t, y, yd, p, ip, dist, nx, ny, vn, vt):
     """Normal contact force on a disc in contact, N (> 0 pushes it inward)."""
     if ip[IP_STATOR] == STATOR_RIGID:
@@ -186,7 +186,7 @@ def contact_normal_force(t, y, yd, p, ip, dist, nx, ny, vn, vt):
     return p[P_KC] * (dist - p[P_D]) + p[P_CC] * vn
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, inline="always")
 def holding_friction(t, y, yd, p, ip, dist, nx, ny, vn, vt):
     """Tangential force that keeps the slip speed at zero (sticking contact), N."""
     fx, fy = disc_external_force(t, y, yd, p, ip)
@@ -195,7 +195,7 @@ def holding_friction(t, y, yd, p, ip, dist, nx, ny, vn, vt):
     return sticking_friction(-fx * ny + fy * nx, -sx * ny + sy * nx, vt, vn, dist, p[P_M], ms)
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, inline="always")
 def contact_force(t, y, yd, mode, p, ip):
     """Stator contact force on the disc (fx, fy) and its normal part, N."""
     if ip[IP_STATOR] == STATOR_NONE or mode == MODE_FREE:
@@ -212,7 +212,7 @@ def contact_force(t, y, yd, mode, p, ip):
     return fx, fy, n
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, inline="always")
 def bearing_force(y: np.ndarray, p: np.ndarray, ip: np.ndarray):
     j = ip[IP_JOURNAL]
     if j < 0 or ip[IP_BEARING] == BEARING_NONE:
@@ -222,7 +222,7 @@ def bearing_force(y: np.ndarray, p: np.ndarray, ip: np.ndarray):
     return oilfilm_force(y[j], y[j + 1], y[j + 2], y[j + 3], p[P_W], p[P_CR], p[P_SIGMA])
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, inline="always")
 def rotor_rhs(t, y, yd, mode, p, ip, dy):
     fx, fy = disc_external_force(t, y, yd, p, ip)
     cfx, cfy, _ = contact_force(t, y, yd, mode, p, ip)
@@ -249,7 +249,7 @@ def rotor_rhs(t, y, yd, mode, p, ip, dy):
         dy[c + 3] = (-cfy - p[P_KS] * y[c + 1] - p[P_CSC] * y[c + 3]) / ms
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, inline="always")
 def oscillator_rhs(t, y, mode, p, ip, dy):
     if mode != MODE_FREE:
         dy[0] = 0.0
@@ -261,7 +261,7 @@ def oscillator_rhs(t, y, mode, p, ip, dy):
     dy[1] = acc
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, inline="always")
 def rhs(t, y, yd, mode, p, ip, dy):
     """dy/dt for the system in ``mode``; ``yd`` is the delayed disc state."""
     if ip[IP_FAMILY] == FAMILY_ROTOR:
