@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 from scipy.integrate import DOP853
+from scipy.integrate._ivp.common import select_initial_step
 
 from .core import (
     C_EVAL,
@@ -49,6 +50,7 @@ def integrate(y0, mode, t0, t_end, p, ip, rtol, atol, max_step, t_eval, rec, ev_
     y_next = np.empty(n)
     work = np.empty(n)
     forced_slot, forced_side = -1, 0
+    h_last = 0.0
     cnt[C_EVAL] = record_point(t, y, mode, p, ip, hist, t_eval, 0, rec, yd, np.empty(rec.shape[1]))
     while t < t_end and cnt[C_STATUS] == STATUS_OK:
         bound = next_breakpoint(t, t_end, p, ip, queue, qmeta)
@@ -59,7 +61,15 @@ def integrate(y0, mode, t0, t_end, p, ip, rtol, atol, max_step, t_eval, rec, ev_
         def fun(tt, yy, _mode=current_mode):
             return full_rhs_alloc(tt, yy, _mode, p, ip, hist)
 
-        solver = DOP853(fun, t, y, bound, rtol=rtol, atol=atol, max_step=max_step)
+        first_step = None
+        if h_last > 0.0:
+            # Same restart rule as the fast engine: the heuristic, capped by the
+            # last accepted step.
+            f0 = fun(t, y)
+            cnt[C_RHS] += 2
+            guess = select_initial_step(fun, t, y, bound, max_step, f0, 1.0, 7, rtol, atol)
+            first_step = min(guess, h_last)
+        solver = DOP853(fun, t, y, bound, rtol=rtol, atol=atol, max_step=max_step, first_step=first_step)
         cnt[C_RESTARTS] += 1
         while solver.status == "running" and cnt[C_STATUS] == STATUS_OK:
             message = solver.step()
@@ -71,6 +81,7 @@ def integrate(y0, mode, t0, t_end, p, ip, rtol, atol, max_step, t_eval, rec, ev_
                 break
             del message
             cnt[C_STEPS] += 1
+            h_last = solver.step_size
             step_end_events(solver.t, solver.y, mode, p, ip, hist, yd, g_b, dirs_b, rates_b)
             if not needs_dense(solver.t, hist, g_a, side, dirs, rates, g_b, t_eval, cnt):
                 g_a[:] = g_b

@@ -50,33 +50,34 @@ ERROR_EXPONENT = -1.0 / 8.0
 
 
 @nb.njit(cache=True)
-def _rms(v):
-    s = 0.0
-    for x in v:
-        s += x * x
-    return math.sqrt(s / v.shape[0])
-
-
-@nb.njit(cache=True)
-def initial_step(t0, y0, f0, t_bound, max_step, rtol, atol, mode, p, ip, hist, yd, cnt):
+def initial_step(t0, y0, f0, t_bound, max_step, rtol, atol, mode, p, ip, hist, yd, y1, f1, cnt):
     """scipy's ``select_initial_step`` (Hairer, Norsett & Wanner II.4), order 7."""
     n = y0.shape[0]
     interval = abs(t_bound - t0)
     if interval == 0.0:
         return 0.0
-    scale = atol + np.abs(y0) * rtol
-    d0 = _rms(y0 / scale)
-    d1 = _rms(f0 / scale)
+    d0 = 0.0
+    d1 = 0.0
+    for i in range(n):
+        sc = atol[i] + abs(y0[i]) * rtol
+        d0 += (y0[i] / sc) ** 2
+        d1 += (f0[i] / sc) ** 2
+    d0 = math.sqrt(d0 / n)
+    d1 = math.sqrt(d1 / n)
     if d0 < 1e-5 or d1 < 1e-5:
         h0 = 1e-6
     else:
         h0 = 0.01 * d0 / d1
     h0 = min(h0, interval)
-    y1 = y0 + h0 * f0
-    f1 = np.empty(n)
+    for i in range(n):
+        y1[i] = y0[i] + h0 * f0[i]
     full_rhs(t0 + h0, y1, mode, p, ip, hist, yd, f1)
     cnt[C_RHS] += 1
-    d2 = _rms((f1 - f0) / scale) / h0
+    d2 = 0.0
+    for i in range(n):
+        sc = atol[i] + abs(y0[i]) * rtol
+        d2 += ((f1[i] - f0[i]) / sc) ** 2
+    d2 = math.sqrt(d2 / n) / h0
     if d1 <= 1e-15 and d2 <= 1e-15:
         h1 = max(1e-6, h0 * 1e-3)
     else:
@@ -173,6 +174,7 @@ def integrate(y0, mode, t0, t_end, p, ip, rtol, atol, max_step, t_eval, rec, ev_
     rates_b = np.zeros(N_EVENTS, dtype=np.int64)
     ytmp = np.empty(n)
     forced_slot, forced_side = -1, 0
+    h_last = 0.0
     obuf = np.empty(rec.shape[1])
     cnt[C_EVAL] = record_point(t, y, mode, p, ip, hist, t_eval, 0, rec, yd, obuf)
     while t < t_end and cnt[C_STATUS] == STATUS_OK:
@@ -182,7 +184,11 @@ def integrate(y0, mode, t0, t_end, p, ip, rtol, atol, max_step, t_eval, rec, ev_
         full_rhs(t, y, mode, p, ip, hist, yd, f)
         cnt[C_RHS] += 1
         cnt[C_RESTARTS] += 1
-        h_abs = initial_step(t, y, f, bound, max_step, rtol, atol, mode, p, ip, hist, yd, cnt)
+        h_abs = initial_step(t, y, f, bound, max_step, rtol, atol, mode, p, ip, hist, yd, ytmp, y_new, cnt)
+        if h_last > 0.0:
+            # After an event the last accepted step is a better guess than the
+            # heuristic, which overshoots and gets rejected after most impacts.
+            h_abs = min(h_abs, h_last)
         while t < bound and cnt[C_STATUS] == STATUS_OK:
             min_step = 10.0 * abs(np.nextafter(t, np.inf) - t)
             if h_abs > max_step:
@@ -226,6 +232,7 @@ def integrate(y0, mode, t0, t_end, p, ip, rtol, atol, max_step, t_eval, rec, ev_
                 cnt[C_STATUS] = STATUS_NONFINITE
                 break
             cnt[C_STEPS] += 1
+            h_last = h
             step_end_events(t_new, y_new, mode, p, ip, hist, yd, g_b, dirs_b, rates_b)
             if not needs_dense(t_new, hist, g_a, side, dirs, rates, g_b, t_eval, cnt):
                 # Nothing to record, no delay to feed, no event possible: move on.
