@@ -29,9 +29,14 @@ LINEAR_PARAMS = (
 
 def oilfilm_sigma(viscosity: float, speed: float, radius: float, length: float, clearance: float):
     """Capone's force scale sigma = mu w R L (R/c)^2 (L/(2R))^2, N."""
-    return viscosity * speed * radius * length * (radius / clearance) ** 2 * (
-        length / (2.0 * radius)
-    ) ** 2
+    return (
+        viscosity
+        * speed
+        * radius
+        * length
+        * (radius / clearance) ** 2
+        * (length / (2.0 * radius)) ** 2
+    )
 
 
 @nb.njit(cache=True)

@@ -23,7 +23,13 @@ import numba as nb
 
 from .parameters import choice, nonnegative, positive, real
 
-STOP_KINDS = ("none", "rigid_one_sided", "rigid_two_sided", "elastic_one_sided", "elastic_two_sided")
+STOP_KINDS = (
+    "none",
+    "rigid_one_sided",
+    "rigid_two_sided",
+    "elastic_one_sided",
+    "elastic_two_sided",
+)
 
 OSCILLATOR_PARAMS = (
     real("linear_stiffness", None, "1/s^2", "linear stiffness a (per unit mass)"),

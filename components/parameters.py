@@ -76,7 +76,9 @@ class Param:
         below = value <= self.low if self.low_open else value < self.low
         above = value >= self.high if self.high_open else value > self.high
         if below or above:
-            raise ParameterError(f"{field} = {value!r} is outside the allowed range: {self.allowed()}")
+            raise ParameterError(
+                f"{field} = {value!r} is outside the allowed range: {self.allowed()}"
+            )
         return value
 
 
@@ -115,7 +117,9 @@ def resolve(unit: str, specs: tuple[Param, ...], given: Mapping[str, Any]) -> di
     unknown = sorted(set(given) - set(by_name))
     if unknown:
         known = ", ".join(sorted(by_name))
-        raise ParameterError(f"{unit}.{unknown[0]} is not a parameter of this unit (known: {known})")
+        raise ParameterError(
+            f"{unit}.{unknown[0]} is not a parameter of this unit (known: {known})"
+        )
     values: dict[str, Any] = {}
     for p in specs:
         if p.name in given:

@@ -33,7 +33,9 @@ JEFFCOTT_PARAMS = (
     nonnegative("eccentricity", 0.0, "m", "unbalance eccentricity e"),
     nonnegative("speed", None, "rad/s", "spin speed w (x->y sense)"),
     nonnegative("gravity", 0.0, "m/s^2", "gravitational acceleration g along -y"),
-    nonnegative("disc_radius", 0.0, "m", "radius Rd of the rubbing surface (slip speed v.t + Rd w)"),
+    nonnegative(
+        "disc_radius", 0.0, "m", "radius Rd of the rubbing surface (slip speed v.t + Rd w)"
+    ),
     *_STATE,
 )
 

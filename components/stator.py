@@ -110,7 +110,9 @@ def rigid_impact(
 
 
 @nb.njit(cache=True)
-def penalty_normal_force(rx: float, ry: float, rvx: float, rvy: float, d: float, kc: float, cc: float):
+def penalty_normal_force(
+    rx: float, ry: float, rvx: float, rvy: float, d: float, kc: float, cc: float
+):
     """Normal penalty force ``Fn = kc (dist - d) + cc * d(dist)/dt``, N (>0 pushes inward).
 
     Linear Kelvin-Voigt contact, as in the brief: it may pull for a moment

@@ -15,13 +15,27 @@ EXIT_RUN_FAILED = 3
 
 
 def _parser() -> argparse.ArgumentParser:
-    ap = argparse.ArgumentParser(prog="rubcosim", description="Nonsmooth rotor/stator rub-impact simulation.")
+    ap = argparse.ArgumentParser(
+        prog="rubcosim", description="Nonsmooth rotor/stator rub-impact simulation."
+    )
     sub = ap.add_subparsers(dest="command", required=True)
     run = sub.add_parser("run", help="run a scenario with the monolithic reference")
     run.add_argument("scenario", help="scenario TOML file")
-    run.add_argument("--set", action="append", default=[], metavar="UNIT.PARAM=VALUE", help="override a parameter, initial state or sim setting (repeatable)")
-    run.add_argument("--engine", choices=sorted(ENGINES), help="integrator (default: the scenario's sim.engine)")
-    run.add_argument("--out", required=True, help="output directory (replaced only when the new result is complete)")
+    run.add_argument(
+        "--set",
+        action="append",
+        default=[],
+        metavar="UNIT.PARAM=VALUE",
+        help="override a parameter, initial state or sim setting (repeatable)",
+    )
+    run.add_argument(
+        "--engine", choices=sorted(ENGINES), help="integrator (default: the scenario's sim.engine)"
+    )
+    run.add_argument(
+        "--out",
+        required=True,
+        help="output directory (replaced only when the new result is complete)",
+    )
     return ap
 
 

@@ -26,7 +26,13 @@ def _stator_circle(run: ScenarioRun, ax) -> None:
         return
     s = units["stator"].params
     th = np.linspace(0.0, 2.0 * np.pi, 361)
-    ax.plot(s["x_offset"] + s["clearance"] * np.cos(th), s["y_offset"] + s["clearance"] * np.sin(th), "k--", lw=0.8, label="stator (clearance)")
+    ax.plot(
+        s["x_offset"] + s["clearance"] * np.cos(th),
+        s["y_offset"] + s["clearance"] * np.sin(th),
+        "k--",
+        lw=0.8,
+        label="stator (clearance)",
+    )
 
 
 def orbit(run: ScenarioRun, names: list[str], path: Path) -> None:
@@ -45,7 +51,9 @@ def orbit(run: ScenarioRun, names: list[str], path: Path) -> None:
 
 
 def timeseries(run: ScenarioRun, names: list[str], path: Path) -> None:
-    fig, axes = plt.subplots(len(names), 1, figsize=(8.0, 1.9 * len(names) + 0.6), sharex=True, squeeze=False)
+    fig, axes = plt.subplots(
+        len(names), 1, figsize=(8.0, 1.9 * len(names) + 0.6), sharex=True, squeeze=False
+    )
     for ax, name in zip(axes[:, 0], names, strict=True):
         ax.plot(run.time, run.series(name), lw=0.7)
         ax.set_ylabel(name, fontsize=8)
@@ -62,7 +70,12 @@ def poincare(run: ScenarioRun, names: list[str], path: Path) -> None:
     ax.set_xlabel(names[0])
     ax.set_ylabel(names[1])
     sim = run.scenario.sim
-    ax.set_title(f"{run.scenario.name}: stroboscopic section, phase {sim['poincare_phase']:g} rad, t >= {sim['t_start'] + sim['poincare_discard']:g} s", fontsize=8)
+    first = sim["t_start"] + sim["poincare_discard"]
+    ax.set_title(
+        f"{run.scenario.name}: stroboscopic section, "
+        f"phase {sim['poincare_phase']:g} rad, t >= {first:g} s",
+        fontsize=8,
+    )
     fig.tight_layout()
     fig.savefig(path, dpi=120)
     plt.close(fig)

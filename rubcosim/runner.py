@@ -86,6 +86,7 @@ def report(run: ScenarioRun) -> dict[str, Any]:
         "t_end": sc.sim["t_end"],
         "t_reached": r.t_reached,
         "wall_time_s": r.wall_time_s,
+        "engine_load_s": r.warmup_s,
         "n_events": r.counters["events"],
         "n_impacts": r.counters["impacts"],
         "events_by_kind": kinds,
@@ -114,7 +115,14 @@ def write_results(run: ScenarioRun, out_dir: str | Path) -> Path:
         names = run.scenario.outputs
         keep = run.time <= run.result.t_reached + 1e-12
         table = np.column_stack([run.time[keep]] + [run.series(n)[keep] for n in names])
-        np.savetxt(tmp / "results.csv", table, delimiter=",", header=",".join(["time", *names]), comments="", fmt="%.17g")
+        np.savetxt(
+            tmp / "results.csv",
+            table,
+            delimiter=",",
+            header=",".join(["time", *names]),
+            comments="",
+            fmt="%.17g",
+        )
         (tmp / "report.json").write_text(json.dumps(report(run), indent=2) + "\n", encoding="utf-8")
         plots.scenario_plots(run, tmp)
         if out.exists():

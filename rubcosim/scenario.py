@@ -105,7 +105,9 @@ def _sim_settings(raw: Mapping[str, Any]) -> dict[str, Any]:
             if sim[key] <= 0.0:
                 raise ScenarioError(f"sim.{key} = {sim[key]!r} must be > 0")
     if sim["t_end"] <= sim["t_start"]:
-        raise ScenarioError(f"sim.t_end = {sim['t_end']!r} must be greater than sim.t_start = {sim['t_start']!r}")
+        raise ScenarioError(
+            f"sim.t_end = {sim['t_end']!r} must be greater than sim.t_start = {sim['t_start']!r}"
+        )
     if not MIN_RTOL <= sim["rtol"] < 1.0:
         raise ScenarioError(f"sim.rtol = {sim['rtol']!r} is outside [{MIN_RTOL:.3g}, 1)")
     if not 0.0 < sim["chatter_tol"] < 1.0:
@@ -132,12 +134,16 @@ def _names(where: str, value: Any) -> list[str]:
     return list(value)
 
 
-def build_scenario(data: Mapping[str, Any], overrides: Iterable[str] = (), source: str = "") -> Scenario:
+def build_scenario(
+    data: Mapping[str, Any], overrides: Iterable[str] = (), source: str = ""
+) -> Scenario:
     """Validate a parsed scenario, apply ``--set`` overrides and assemble the system."""
     data = _check_table("the scenario", data)
     unknown = sorted(set(data) - set(TOP_LEVEL))
     if unknown:
-        raise ScenarioError(f"[{unknown[0]}] is not a scenario section (known: {', '.join(TOP_LEVEL)})")
+        raise ScenarioError(
+            f"[{unknown[0]}] is not a scenario section (known: {', '.join(TOP_LEVEL)})"
+        )
     meta = _check_table("[scenario]", data.get("scenario", {}))
     units_raw = _check_table("[units]", data.get("units", {}))
     if not units_raw:
@@ -145,25 +151,36 @@ def build_scenario(data: Mapping[str, Any], overrides: Iterable[str] = (), sourc
     units: dict[str, dict[str, Any]] = {}
     for role, table in units_raw.items():
         if role not in UNIT_TYPES:
-            raise ScenarioError(f"units.{role} is not a known unit (known: {', '.join(UNIT_TYPES)})")
+            raise ScenarioError(
+                f"units.{role} is not a known unit (known: {', '.join(UNIT_TYPES)})"
+            )
         units[role] = dict(_check_table(f"[units.{role}]", table))
         if "type" not in units[role]:
-            raise ScenarioError(f"units.{role}.type is required (one of {', '.join(UNIT_TYPES[role])})")
+            raise ScenarioError(
+                f"units.{role}.type is required (one of {', '.join(UNIT_TYPES[role])})"
+            )
     sim_raw = dict(_check_table("[sim]", data.get("sim", {})))
     for text in overrides:
         role, name, value = parse_override(text)
         if role == "sim":
             if name not in SIM_DEFAULTS:
-                raise ScenarioError(f"--set sim.{name}: not a setting (known: {', '.join(SIM_DEFAULTS)})")
+                raise ScenarioError(
+                    f"--set sim.{name}: not a setting (known: {', '.join(SIM_DEFAULTS)})"
+                )
             sim_raw[name] = value
         elif role in units:
             units[role][name] = value
         else:
             known = ", ".join(["sim", *units])
-            raise ScenarioError(f"--set {role}.{name}: unit {role!r} is not in this scenario (known: {known})")
+            raise ScenarioError(
+                f"--set {role}.{name}: unit {role!r} is not in this scenario (known: {known})"
+            )
     sim = _sim_settings(sim_raw)
     try:
-        built = {role: make_unit(role, t["type"], {k: v for k, v in t.items() if k != "type"}) for role, t in units.items()}
+        built = {
+            role: make_unit(role, t["type"], {k: v for k, v in t.items() if k != "type"})
+            for role, t in units.items()
+        }
         system = build_system(built, chatter_tol=sim["chatter_tol"])
     except ParameterError as exc:
         raise ScenarioError(str(exc)) from None
@@ -174,8 +191,14 @@ def build_scenario(data: Mapping[str, Any], overrides: Iterable[str] = (), sourc
     record = _names("outputs.record", outputs["record"]) if "record" in outputs else None
     for name in record or []:
         if name not in system.output_names:
-            raise ScenarioError(f"outputs.record: {name!r} is not an output (available: {', '.join(system.output_names)})")
-    plots = {k: _names(f"plots.{k}", v) for k, v in _check_table("[plots]", data.get("plots", {})).items()}
+            available = ", ".join(system.output_names)
+            raise ScenarioError(
+                f"outputs.record: {name!r} is not an output (available: {available})"
+            )
+    plots = {
+        k: _names(f"plots.{k}", v)
+        for k, v in _check_table("[plots]", data.get("plots", {})).items()
+    }
     for kind, names in plots.items():
         if kind not in PLOT_KINDS:
             raise ScenarioError(f"plots.{kind} is not a plot kind (known: {', '.join(PLOT_KINDS)})")
@@ -183,7 +206,10 @@ def build_scenario(data: Mapping[str, Any], overrides: Iterable[str] = (), sourc
             raise ScenarioError(f"plots.{kind} needs exactly two output names [x, y]")
         for name in names:
             if name not in system.output_names:
-                raise ScenarioError(f"plots.{kind}: {name!r} is not an output (available: {', '.join(system.output_names)})")
+                available = ", ".join(system.output_names)
+                raise ScenarioError(
+                    f"plots.{kind}: {name!r} is not an output (available: {available})"
+                )
     if record is not None:
         for names in plots.values():
             for name in names:

@@ -6,8 +6,12 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-
-from rubcosim.components.bearing import capone_force, linear_bearing_force, oilfilm_force, oilfilm_sigma
+from rubcosim.components.bearing import (
+    capone_force,
+    linear_bearing_force,
+    oilfilm_force,
+    oilfilm_sigma,
+)
 from rubcosim.components.controller import delay_at, feedback_force
 from rubcosim.components.oscillator import elastic_stop_force, free_acceleration, impact_velocity
 from rubcosim.components.rotor import free_whirl, jeffcott_force, shaft_force, unbalance_force
@@ -117,7 +121,9 @@ def test_contact_geometry_at_centre_is_safe():
 
 def test_constraint_normal_force_balances_centripetal_load():
     # disc sliding on r = d at tangential speed vt, no other force: N = m vt^2 / d
-    assert constraint_normal_force(0.0, 0.0, 1.0, 0.0, 2.0, 0.0, 0.5, 0.5, 3.0, 10.0) == pytest.approx(24.0)
+    assert constraint_normal_force(
+        0.0, 0.0, 1.0, 0.0, 2.0, 0.0, 0.5, 0.5, 3.0, 10.0
+    ) == pytest.approx(24.0)
 
 
 @pytest.mark.parametrize("r", [0.0, 0.3, 0.8, 1.0])

@@ -57,10 +57,23 @@ def test_linear_impact_oscillator_reaches_published_orbits(w, n, speed):
     osc = make_unit(
         "oscillator",
         "impact_oscillator",
-        dict(linear_stiffness=1.0, forcing_amplitude=1.0, forcing_frequency=w, barrier=0.0, restitution=0.8, x0=-1.0),
+        dict(
+            linear_stiffness=1.0,
+            forcing_amplitude=1.0,
+            forcing_frequency=w,
+            barrier=0.0,
+            restitution=0.8,
+            x0=-1.0,
+        ),
     )
     period = 2 * math.pi / w
-    res = simulate(build_system({"oscillator": osc}), 300 * period, output_step=period, engine="fast", rtol=1e-11)
+    res = simulate(
+        build_system({"oscillator": osc}),
+        300 * period,
+        output_step=period,
+        engine="fast",
+        rtol=1e-11,
+    )
     assert res.ok
     impacts = res.events.of_kind("impact")
     pre_impact_speed = res.events.state[impacts, 1] / -0.8
@@ -72,11 +85,22 @@ def duffing(x0):
     osc = make_unit(
         "oscillator",
         "impact_oscillator",
-        dict(linear_stiffness=1.0, damping=0.1, cubic_stiffness=1.0, forcing_amplitude=1.0, forcing_frequency=2.0, barrier=1.0, restitution=0.8, x0=x0),
+        dict(
+            linear_stiffness=1.0,
+            damping=0.1,
+            cubic_stiffness=1.0,
+            forcing_amplitude=1.0,
+            forcing_frequency=2.0,
+            barrier=1.0,
+            restitution=0.8,
+            x0=x0,
+        ),
     )
     period = math.pi
     t_eval = period * np.arange(150, 200)
-    return simulate(build_system({"oscillator": osc}), 200 * period, t_eval=t_eval, engine="fast"), period
+    return simulate(
+        build_system({"oscillator": osc}), 200 * period, t_eval=t_eval, engine="fast"
+    ), period
 
 
 def test_impact_duffing_has_coexisting_impacting_and_free_period_one_orbits():
@@ -100,7 +124,17 @@ def whirl_rotor(s, **extra):
     w = s * WN
     amp = 0.5 * D * s * s / math.hypot(1 - s * s, 2 * Z * s)
     ph = math.atan2(2 * Z * s, 1 - s * s)
-    params = dict(mass=M, damping=2 * Z * M * WN, stiffness=K, eccentricity=0.5 * D, speed=w, x0=amp * math.cos(ph), y0=-amp * math.sin(ph), vx0=amp * w * math.sin(ph), vy0=amp * w * math.cos(ph))
+    params = dict(
+        mass=M,
+        damping=2 * Z * M * WN,
+        stiffness=K,
+        eccentricity=0.5 * D,
+        speed=w,
+        x0=amp * math.cos(ph),
+        y0=-amp * math.sin(ph),
+        vx0=amp * w * math.sin(ph),
+        vy0=amp * w * math.cos(ph),
+    )
     params.update(extra)
     return make_unit("rotor", "jeffcott", params), w, amp
 
@@ -110,8 +144,18 @@ def test_pyragas_force_vanishes_on_a_delay_periodic_orbit(feedback):
     rotor, w, amp = whirl_rotor(0.7)
     period = 2 * math.pi / w
     gain = 1e5 if feedback == "position" else 300.0
-    ctl = make_unit("controller", "delayed_feedback", dict(gain=gain, delay_periods=1, t_on=2 * period, feedback=feedback))
-    res = simulate(build_system({"rotor": rotor, "controller": ctl}), 8 * period, output_step=period / 50, engine="fast", rtol=1e-12)
+    ctl = make_unit(
+        "controller",
+        "delayed_feedback",
+        dict(gain=gain, delay_periods=1, t_on=2 * period, feedback=feedback),
+    )
+    res = simulate(
+        build_system({"rotor": rotor, "controller": ctl}),
+        8 * period,
+        output_step=period / 50,
+        engine="fast",
+        rtol=1e-12,
+    )
     assert res.ok
     u = np.hypot(res.output("controller.ux"), res.output("controller.uy"))
     scale = gain * amp * (1.0 if feedback == "position" else w)
@@ -142,7 +186,17 @@ def test_variable_delay_uses_the_modulated_delay(engine):
     rotor, w, amp = whirl_rotor(0.7, x0=0.0, y0=0.0, vx0=0.0, vy0=0.0)
     period = 2 * math.pi / w
     eps, nu, gain = 0.2 * period, 3.0, 2e5
-    ctl = make_unit("controller", "delayed_feedback", dict(gain=gain, delay_periods=1, modulation_amplitude=eps, modulation_frequency=nu, t_on=3 * period))
+    ctl = make_unit(
+        "controller",
+        "delayed_feedback",
+        dict(
+            gain=gain,
+            delay_periods=1,
+            modulation_amplitude=eps,
+            modulation_frequency=nu,
+            t_on=3 * period,
+        ),
+    )
     system = build_system({"rotor": rotor, "controller": ctl})
     t = np.linspace(4 * period, 6 * period, 97)
     res = simulate(system, 6 * period, t_eval=t, engine=engine, rtol=1e-12)
@@ -157,7 +211,10 @@ def test_variable_delay_uses_the_modulated_delay(engine):
 
 
 def test_impacts_with_delay_feedback_agree_between_engines():
-    scenario = load_scenario(Path(__file__).parents[1] / "scenarios" / "jeffcott_delayed_feedback.toml", ["sim.t_end=0.3"])
+    scenario = load_scenario(
+        Path(__file__).parents[1] / "scenarios" / "jeffcott_delayed_feedback.toml",
+        ["sim.t_end=0.3"],
+    )
     fast = run_scenario(scenario, "fast").result
     accurate = run_scenario(scenario, "accurate").result
     assert fast.counters["impacts"] == accurate.counters["impacts"] > 0

@@ -27,7 +27,16 @@ def steady_start(s, rho=0.5, z=Z):
     amp = rho * D * s * s / math.sqrt((1 - s * s) ** 2 + (2 * z * s) ** 2)
     phase = math.atan2(2 * z * s, 1 - s * s)
     w = s * WN
-    return dict(x0=amp * math.cos(-phase), y0=amp * math.sin(-phase), vx0=-amp * w * math.sin(-phase), vy0=amp * w * math.cos(-phase)), amp, phase
+    return (
+        dict(
+            x0=amp * math.cos(-phase),
+            y0=amp * math.sin(-phase),
+            vx0=-amp * w * math.sin(-phase),
+            vy0=amp * w * math.cos(-phase),
+        ),
+        amp,
+        phase,
+    )
 
 
 @pytest.mark.parametrize("engine", ["fast", "accurate"])
@@ -51,7 +60,13 @@ def test_free_whirl_transient_decays_to_closed_form():
     system = build_system({"rotor": rotor(s, z=z)})
     w = s * WN
     t_end = 60 / (z * WN)
-    res = simulate(system, t_end, t_eval=np.linspace(t_end - 2 * math.pi / w, t_end, 50), engine="fast", rtol=1e-12)
+    res = simulate(
+        system,
+        t_end,
+        t_eval=np.linspace(t_end - 2 * math.pi / w, t_end, 50),
+        engine="fast",
+        rtol=1e-12,
+    )
     _, amp, phase = steady_start(s, z=z)
     assert np.max(np.abs(res.output("rotor.x") - amp * np.cos(w * res.t - phase))) <= 1e-8 * amp
 
@@ -64,7 +79,12 @@ def test_rub_onset_speed_is_where_the_whirl_grazes(delta, rubs):
     if amp >= D:  # start just inside the stator, on the whirl's phase
         start = {key: value * 0.999 * D / amp for key, value in start.items()}
     st = make_unit("stator", "rigid", dict(clearance=D, restitution=0.8, friction=0.1))
-    res = simulate(build_system({"rotor": rotor(s, **start), "stator": st}), 5 * 2 * math.pi / (s * WN), output_step=1e-5, engine="fast")
+    res = simulate(
+        build_system({"rotor": rotor(s, **start), "stator": st}),
+        5 * 2 * math.pi / (s * WN),
+        output_step=1e-5,
+        engine="fast",
+    )
     assert res.ok
     assert (res.counters["impacts"] > 0) == rubs
     if not rubs:
@@ -97,7 +117,9 @@ def test_synchronous_full_rub_amplitude_of_penalty_stator(s, beta, mu):
     st = make_unit("stator", "elastic", dict(clearance=D, contact_stiffness=beta * K, friction=mu))
     system = build_system({"rotor": rotor(s, x0=r0, vy0=r0 * w, disc_radius=0.05), "stator": st})
     t_end = 400 * 2 * math.pi / w
-    res = simulate(system, t_end, t_eval=np.linspace(t_end - 2 * math.pi / w, t_end, 40), engine="fast")
+    res = simulate(
+        system, t_end, t_eval=np.linspace(t_end - 2 * math.pi / w, t_end, 40), engine="fast"
+    )
     assert res.ok
     radius = np.hypot(res.output("rotor.x"), res.output("rotor.y")) / D
     assert np.all(np.abs(radius - a_ref) <= 1e-6 * a_ref)
@@ -105,7 +127,9 @@ def test_synchronous_full_rub_amplitude_of_penalty_stator(s, beta, mu):
 
 def impact_start_system(stator):
     """Rotor heading straight at the stator from the centre, no unbalance."""
-    r = make_unit("rotor", "jeffcott", dict(mass=M, damping=0.0, stiffness=K, speed=0.0, vx0=0.5, vy0=0.1))
+    r = make_unit(
+        "rotor", "jeffcott", dict(mass=M, damping=0.0, stiffness=K, speed=0.0, vx0=0.5, vy0=0.1)
+    )
     return build_system({"rotor": r, "stator": stator})
 
 
@@ -129,15 +153,30 @@ def test_elastic_stator_converges_to_rigid_as_contact_stiffness_grows():
     r, mu = 0.8, 0.1
     horizon = 3e-3  # a few impacts, before any chattering
     t_eval = np.linspace(0, horizon, 301)
-    rigid = simulate(impact_start_system(make_unit("stator", "rigid", dict(clearance=D, restitution=r, friction=mu))), horizon, t_eval=t_eval, engine="fast", rtol=1e-12)
+    rigid = simulate(
+        impact_start_system(
+            make_unit("stator", "rigid", dict(clearance=D, restitution=r, friction=mu))
+        ),
+        horizon,
+        t_eval=t_eval,
+        engine="fast",
+        rtol=1e-12,
+    )
     assert rigid.counters["impacts"] >= 2
     errors = []
     betas = (1e2, 1e3, 1e4, 1e5, 1e6)
     for beta in betas:
-        st = make_unit("stator", "elastic", dict(clearance=D, contact_stiffness=beta * K, restitution=r, friction=mu))
+        st = make_unit(
+            "stator",
+            "elastic",
+            dict(clearance=D, contact_stiffness=beta * K, restitution=r, friction=mu),
+        )
         el = simulate(impact_start_system(st), horizon, t_eval=t_eval, engine="fast", rtol=1e-11)
         assert el.ok
-        diff = np.hypot(el.output("rotor.x") - rigid.output("rotor.x"), el.output("rotor.y") - rigid.output("rotor.y"))
+        diff = np.hypot(
+            el.output("rotor.x") - rigid.output("rotor.x"),
+            el.output("rotor.y") - rigid.output("rotor.y"),
+        )
         errors.append(diff.max() / D)
     assert all(b < a for a, b in zip(errors, errors[1:], strict=False)), errors
     # the contact lasts ~ 1/sqrt(kc): the error should fall like kc^(-1/2)
@@ -162,8 +201,20 @@ def test_chattering_ends_in_sustained_contact_in_finite_time():
 
 
 def test_plastic_impact_sticks_at_once():
-    osc = make_unit("oscillator", "impact_oscillator", dict(linear_stiffness=1.0, forcing_amplitude=2.0, forcing_frequency=1.0, barrier=0.5, restitution=0.0))
-    res = simulate(build_system({"oscillator": osc}), 3.0, output_step=0.01, engine="accurate", rtol=1e-12)
+    osc = make_unit(
+        "oscillator",
+        "impact_oscillator",
+        dict(
+            linear_stiffness=1.0,
+            forcing_amplitude=2.0,
+            forcing_frequency=1.0,
+            barrier=0.5,
+            restitution=0.0,
+        ),
+    )
+    res = simulate(
+        build_system({"oscillator": osc}), 3.0, output_step=0.01, engine="accurate", rtol=1e-12
+    )
     assert res.ok
     assert res.counters["impacts"] == 1
     assert res.events.mode[0] == MODE_STUCK_UPPER
@@ -177,7 +228,13 @@ def test_rolling_contact_sticks_slip(engine):
     # dry whip: the disc rolls backward on the stator without slip (v.t = -Rd w)
     # and friction holds it there; centripetal load keeps the contact closed.
     st = make_unit("stator", "rigid", dict(clearance=D, restitution=0.0, friction=1.0))
-    r = make_unit("rotor", "jeffcott", dict(mass=M, stiffness=K, damping=10.0, speed=1.0, disc_radius=0.1, x0=0.999999 * D, vy0=-0.1))
+    r = make_unit(
+        "rotor",
+        "jeffcott",
+        dict(
+            mass=M, stiffness=K, damping=10.0, speed=1.0, disc_radius=0.1, x0=0.999999 * D, vy0=-0.1
+        ),
+    )
     res = simulate(build_system({"rotor": r, "stator": st}), 2e-3, output_step=1e-5, engine=engine)
     assert res.ok
     assert res.final_mode == MODE_STICK

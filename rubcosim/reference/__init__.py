@@ -8,4 +8,13 @@ scenario file with :func:`rubcosim.scenario.load_scenario`.
 from .assemble import System, Unit, build_system, make_unit
 from .simulate import Events, Result, output_grid, simulate
 
-__all__ = ["Events", "Result", "System", "Unit", "build_system", "make_unit", "output_grid", "simulate"]
+__all__ = [
+    "Events",
+    "Result",
+    "System",
+    "Unit",
+    "build_system",
+    "make_unit",
+    "output_grid",
+    "simulate",
+]

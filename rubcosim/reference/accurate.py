@@ -34,7 +34,29 @@ from .core import (
 from .system import N_DELAYED, N_EVENTS
 
 
-def integrate(y0, mode, t0, t_end, p, ip, rtol, atol, max_step, t_eval, rec, ev_t, ev_kind, ev_slot, ev_mode, ev_y, hist, queue, qmeta, cnt, y_final):
+def integrate(
+    y0,
+    mode,
+    t0,
+    t_end,
+    p,
+    ip,
+    rtol,
+    atol,
+    max_step,
+    t_eval,
+    rec,
+    ev_t,
+    ev_kind,
+    ev_slot,
+    ev_mode,
+    ev_y,
+    hist,
+    queue,
+    qmeta,
+    cnt,
+    y_final,
+):
     """Same contract as :func:`rubcosim.reference.fast.integrate`."""
     y = np.array(y0, dtype=float)
     t = float(t0)
@@ -69,7 +91,9 @@ def integrate(y0, mode, t0, t_end, p, ip, rtol, atol, max_step, t_eval, rec, ev_
             cnt[C_RHS] += 2
             guess = select_initial_step(fun, t, y, bound, max_step, f0, 1.0, 7, rtol, atol)
             first_step = min(guess, h_last)
-        solver = DOP853(fun, t, y, bound, rtol=rtol, atol=atol, max_step=max_step, first_step=first_step)
+        solver = DOP853(
+            fun, t, y, bound, rtol=rtol, atol=atol, max_step=max_step, first_step=first_step
+        )
         cnt[C_RESTARTS] += 1
         while solver.status == "running" and cnt[C_STATUS] == STATUS_OK:
             message = solver.step()
@@ -90,7 +114,34 @@ def integrate(y0, mode, t0, t_end, p, ip, rtol, atol, max_step, t_eval, rec, ev_
                 t = solver.t
                 continue
             dense = solver.dense_output()
-            t_next, mode_next, fs, fside = after_step(solver.t_old, solver.t, dense.y_old, solver.y, dense.F, mode, p, ip, hist, queue, qmeta, g_a, side, dirs, rates, g_b, t_eval, rec, ev_t, ev_kind, ev_slot, ev_mode, ev_y, cnt, y_next, work)
+            t_next, mode_next, fs, fside = after_step(
+                solver.t_old,
+                solver.t,
+                dense.y_old,
+                solver.y,
+                dense.F,
+                mode,
+                p,
+                ip,
+                hist,
+                queue,
+                qmeta,
+                g_a,
+                side,
+                dirs,
+                rates,
+                g_b,
+                t_eval,
+                rec,
+                ev_t,
+                ev_kind,
+                ev_slot,
+                ev_mode,
+                ev_y,
+                cnt,
+                y_next,
+                work,
+            )
             y = y_next.copy()
             t = t_next
             if fs >= 0 or mode_next != mode:

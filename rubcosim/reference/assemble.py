@@ -94,7 +94,9 @@ def _oscillator_system(u: Unit, chatter_tol: float) -> System:
     stop = STOP_KINDS.index(q["stop"])
     two_sided = q["stop"].endswith("two_sided")
     if two_sided and q["barrier"] <= 0.0:
-        raise ParameterError(f"oscillator.barrier = {q['barrier']!r} must be > 0 for a two-sided stop")
+        raise ParameterError(
+            f"oscillator.barrier = {q['barrier']!r} must be > 0 for a two-sided stop"
+        )
     if q["stop"].startswith("elastic") and q["stop_stiffness"] <= 0.0:
         raise ParameterError("oscillator.stop_stiffness must be > 0 for an elastic stop")
     x0 = q["x0"]
@@ -141,7 +143,9 @@ def _rotor_system(units: Mapping[str, Unit], chatter_tol: float) -> System:
     controller = units.get("controller")
     two_mass = rotor.type == "two_mass"
     if bearing is not None and not two_mass:
-        raise ParameterError("bearing: a bearing needs rotor.type = 'two_mass' (it holds the journal)")
+        raise ParameterError(
+            "bearing: a bearing needs rotor.type = 'two_mass' (it holds the journal)"
+        )
     if two_mass and bearing is None:
         raise ParameterError("rotor.type = 'two_mass' needs a 'bearing' unit for its journal")
     w = r["speed"]
@@ -181,9 +185,13 @@ def _rotor_system(units: Mapping[str, Unit], chatter_tol: float) -> System:
         else:
             ip[S.IP_BEARING] = S.BEARING_OILFILM
             p[S.P_CR] = b["clearance"]
-            p[S.P_SIGMA] = oilfilm_sigma(b["viscosity"], w, b["radius"], b["length"], b["clearance"])
+            p[S.P_SIGMA] = oilfilm_sigma(
+                b["viscosity"], w, b["radius"], b["length"], b["clearance"]
+            )
             if math.hypot(r["journal_x0"], r["journal_y0"]) >= b["clearance"]:
-                raise ParameterError("rotor.journal_x0/journal_y0 put the journal outside the bearing clearance")
+                raise ParameterError(
+                    "rotor.journal_x0/journal_y0 put the journal outside the bearing clearance"
+                )
             length = max(length, b["clearance"])
 
     if stator is not None:
@@ -197,7 +205,9 @@ def _rotor_system(units: Mapping[str, Unit], chatter_tol: float) -> System:
         if stator.type == "rigid":
             ip[S.IP_STATOR] = S.STATOR_RIGID
             if math.hypot(r["x0"] - s["x_offset"], r["y0"] - s["y_offset"]) > s["clearance"]:
-                raise ParameterError("rotor.x0/rotor.y0 start the disc beyond the rigid stator's clearance")
+                raise ParameterError(
+                    "rotor.x0/rotor.y0 start the disc beyond the rigid stator's clearance"
+                )
         else:
             ip[S.IP_STATOR] = S.STATOR_ELASTIC if stator.type == "elastic" else S.STATOR_CASING
             p[S.P_KC] = s["contact_stiffness"]
@@ -211,12 +221,18 @@ def _rotor_system(units: Mapping[str, Unit], chatter_tol: float) -> System:
                 names += ["stator.x", "stator.y", "stator.vx", "stator.vy"]
                 y0 += [s["x0"], s["y0"], s["vx0"], s["vy0"]]
             cc = s["contact_damping"]
-            p[S.P_CC] = cc if cc >= 0.0 else damping_from_restitution(s["restitution"], s["contact_stiffness"], m_eff)
+            p[S.P_CC] = (
+                cc
+                if cc >= 0.0
+                else damping_from_restitution(s["restitution"], s["contact_stiffness"], m_eff)
+            )
 
     if controller is not None:
         c = controller.params
         if w <= 0.0 and c["delay"] < 0.0:
-            raise ParameterError("controller.delay_periods needs rotor.speed > 0 (or give controller.delay)")
+            raise ParameterError(
+                "controller.delay_periods needs rotor.speed > 0 (or give controller.delay)"
+            )
         tau0 = c["delay"] if c["delay"] >= 0.0 else c["delay_periods"] * 2.0 * math.pi / w
         if tau0 <= 0.0:
             raise ParameterError("controller.delay must be > 0")

@@ -19,13 +19,13 @@ import numba as nb
 import numpy as np
 
 from .system import (
-    IP_CONTROL,
-    IP_FAMILY,
-    N_DELAYED,
-    N_EVENTS,
     CONTROL_NONE,
     FAMILY_ROTOR,
+    IP_CONTROL,
+    IP_FAMILY,
     KIND_IMPACT,
+    N_DELAYED,
+    N_EVENTS,
     P_EPS,
     P_NU,
     P_TAU0,
@@ -220,7 +220,9 @@ def event_value(slot, t, t_old, h, y_old, F, mode, p, ip, hist, ybuf, yd, g, dir
 
 
 @nb.njit(cache=True)
-def locate(slot, sgn, ta, fa, tb, fb, t_old, h, y_old, F, mode, p, ip, hist, ybuf, yd, g, dirs, rates):
+def locate(
+    slot, sgn, ta, fa, tb, fb, t_old, h, y_old, F, mode, p, ip, hist, ybuf, yd, g, dirs, rates
+):
     """Bracket [ta, tb] of a zero of ``sgn * g_slot`` (fa > 0 >= fb).
 
     Brent's method: inverse quadratic interpolation through three points,
@@ -263,14 +265,37 @@ def locate(slot, sgn, ta, fa, tb, fb, t_old, h, y_old, F, mode, p, ip, hist, ybu
             xcur += scur
         else:
             xcur += delta if sbis > 0.0 else -delta
-        fcur = sgn * event_value(slot, xcur, t_old, h, y_old, F, mode, p, ip, hist, ybuf, yd, g, dirs, rates)
+        fcur = sgn * event_value(
+            slot, xcur, t_old, h, y_old, F, mode, p, ip, hist, ybuf, yd, g, dirs, rates
+        )
     if fcur <= 0.0:
         return xcur
     return xblk
 
 
 @nb.njit(cache=True)
-def find_event(t_a, t_b, t_old, h, y_old, F, mode, p, ip, hist, g_a, side_a, dirs_a, rates_a, g_b, ybuf, yd, g, dirs, rates):
+def find_event(
+    t_a,
+    t_b,
+    t_old,
+    h,
+    y_old,
+    F,
+    mode,
+    p,
+    ip,
+    hist,
+    g_a,
+    side_a,
+    dirs_a,
+    rates_a,
+    g_b,
+    ybuf,
+    yd,
+    g,
+    dirs,
+    rates,
+):
     """Earliest event in (t_a, t_b] of the step's dense output, or (-1, t_b).
 
     ``side_a[k]`` is the side (+1/-1) of slot k at t_a, ``g_b`` the event
@@ -294,24 +319,88 @@ def find_event(t_a, t_b, t_old, h, y_old, F, mode, p, ip, hist, g_a, side_a, dir
             right = t_b
             if j >= 0 and sgn * g_a[j] > 0.0 and sgn * g_b[j] < 0.0:
                 # Moving away first, then back through zero: start past the extremum.
-                ts = locate(j, sgn, t_a, sgn * g_a[j], t_b, sgn * g_b[j], t_old, h, y_old, F, mode, p, ip, hist, ybuf, yd, g, dirs, rates)
+                ts = locate(
+                    j,
+                    sgn,
+                    t_a,
+                    sgn * g_a[j],
+                    t_b,
+                    sgn * g_b[j],
+                    t_old,
+                    h,
+                    y_old,
+                    F,
+                    mode,
+                    p,
+                    ip,
+                    hist,
+                    ybuf,
+                    yd,
+                    g,
+                    dirs,
+                    rates,
+                )
                 left = ts
         elif j >= 0 and sgn * g_a[j] < 0.0 and sgn * g_b[j] > 0.0:
             # Approaching, then receding within the step: does it touch at the extremum?
-            ts = locate(j, -sgn, t_a, -sgn * g_a[j], t_b, -sgn * g_b[j], t_old, h, y_old, F, mode, p, ip, hist, ybuf, yd, g, dirs, rates)
+            ts = locate(
+                j,
+                -sgn,
+                t_a,
+                -sgn * g_a[j],
+                t_b,
+                -sgn * g_b[j],
+                t_old,
+                h,
+                y_old,
+                F,
+                mode,
+                p,
+                ip,
+                hist,
+                ybuf,
+                yd,
+                g,
+                dirs,
+                rates,
+            )
             gs = event_value(k, ts, t_old, h, y_old, F, mode, p, ip, hist, ybuf, yd, g, dirs, rates)
             if sgn * gs <= 0.0:
                 right = ts
         if right < 0.0 or right > best_t or (right == best_t and best_k >= 0):
             continue
-        fl = sgn * event_value(k, left, t_old, h, y_old, F, mode, p, ip, hist, ybuf, yd, g, dirs, rates)
-        fr = sgn * event_value(k, right, t_old, h, y_old, F, mode, p, ip, hist, ybuf, yd, g, dirs, rates)
+        fl = sgn * event_value(
+            k, left, t_old, h, y_old, F, mode, p, ip, hist, ybuf, yd, g, dirs, rates
+        )
+        fr = sgn * event_value(
+            k, right, t_old, h, y_old, F, mode, p, ip, hist, ybuf, yd, g, dirs, rates
+        )
         if fl <= 0.0:
             # Round-off at the start of a step just after an event: treat it as the pre side.
             fl = 1e-300
         if fr > 0.0:
             continue
-        te = locate(k, sgn, left, fl, right, fr, t_old, h, y_old, F, mode, p, ip, hist, ybuf, yd, g, dirs, rates)
+        te = locate(
+            k,
+            sgn,
+            left,
+            fl,
+            right,
+            fr,
+            t_old,
+            h,
+            y_old,
+            F,
+            mode,
+            p,
+            ip,
+            hist,
+            ybuf,
+            yd,
+            g,
+            dirs,
+            rates,
+        )
         if best_k < 0 or te < best_t:
             best_k = k
             best_t = te
@@ -400,7 +489,9 @@ def max_history_age(p, ip):
 
 # ---------------------------------------------------------------- bookkeeping
 # counters layout
-C_STEPS, C_REJECTED, C_RHS, C_EVENTS, C_IMPACTS, C_STATUS, C_EVAL, C_RESTARTS, C_SAME_TIME = range(9)
+C_STEPS, C_REJECTED, C_RHS, C_EVENTS, C_IMPACTS, C_STATUS, C_EVAL, C_RESTARTS, C_SAME_TIME = range(
+    9
+)
 N_COUNTERS = 9
 MAX_SAME_TIME_EVENTS = 64
 
@@ -416,7 +507,34 @@ def needs_dense(t_b, hist, g_a, side, dirs, rates, g_b, t_eval, cnt):
 
 
 @nb.njit(cache=True)
-def after_step(t_a, t_b, y_old, y_b, F, mode, p, ip, hist, queue, qmeta, g_a, side, dirs, rates, g_b, t_eval, rec, ev_t, ev_kind, ev_slot, ev_mode, ev_y, cnt, y_out, work):
+def after_step(
+    t_a,
+    t_b,
+    y_old,
+    y_b,
+    F,
+    mode,
+    p,
+    ip,
+    hist,
+    queue,
+    qmeta,
+    g_a,
+    side,
+    dirs,
+    rates,
+    g_b,
+    t_eval,
+    rec,
+    ev_t,
+    ev_kind,
+    ev_slot,
+    ev_mode,
+    ev_y,
+    cnt,
+    y_out,
+    work,
+):
     """Process an accepted step [t_a, t_b] with dense output F and the event
     functions ``g_b`` at t_b.
 
@@ -433,9 +551,32 @@ def after_step(t_a, t_b, y_old, y_b, F, mode, p, ip, hist, queue, qmeta, g_a, si
     g = np.empty(N_EVENTS)
     dtmp = np.empty(N_EVENTS, dtype=np.int64)
     rtmp = np.empty(N_EVENTS, dtype=np.int64)
-    k, te = find_event(t_a, t_b, t_a, h, y_old, F, mode, p, ip, hist, g_a, side, dirs, rates, g_b, ybuf, yd, g, dtmp, rtmp)
+    k, te = find_event(
+        t_a,
+        t_b,
+        t_a,
+        h,
+        y_old,
+        F,
+        mode,
+        p,
+        ip,
+        hist,
+        g_a,
+        side,
+        dirs,
+        rates,
+        g_b,
+        ybuf,
+        yd,
+        g,
+        dtmp,
+        rtmp,
+    )
     t_hi = te if k >= 0 else t_b
-    cnt[C_EVAL] = record(t_a, t_hi, t_a, h, y_old, F, mode, p, ip, hist, t_eval, cnt[C_EVAL], rec, ybuf, yd, obuf)
+    cnt[C_EVAL] = record(
+        t_a, t_hi, t_a, h, y_old, F, mode, p, ip, hist, t_eval, cnt[C_EVAL], rec, ybuf, yd, obuf
+    )
     if hist is not None:
         history_push(hist, t_a, h, t_hi, y_old, F, t_hi - max_history_age(p, ip) - h)
     if k < 0:

@@ -15,8 +15,8 @@ import numpy as np
 from scipy.integrate._ivp import dop853_coefficients as _dop
 
 from .core import (
-    C_REJECTED,
     C_EVAL,
+    C_REJECTED,
     C_RESTARTS,
     C_RHS,
     C_STATUS,
@@ -152,7 +152,29 @@ def error_norm(K, h, y, y_new, rtol, atol):
 
 
 @nb.njit(cache=True)
-def integrate(y0, mode, t0, t_end, p, ip, rtol, atol, max_step, t_eval, rec, ev_t, ev_kind, ev_slot, ev_mode, ev_y, hist, queue, qmeta, cnt, y_final):
+def integrate(
+    y0,
+    mode,
+    t0,
+    t_end,
+    p,
+    ip,
+    rtol,
+    atol,
+    max_step,
+    t_eval,
+    rec,
+    ev_t,
+    ev_kind,
+    ev_slot,
+    ev_mode,
+    ev_y,
+    hist,
+    queue,
+    qmeta,
+    cnt,
+    y_final,
+):
     """Integrate from t0 to t_end; returns ``(t, mode)`` reached (t < t_end on failure)."""
     n = y0.shape[0]
     y = y0.copy()
@@ -184,7 +206,9 @@ def integrate(y0, mode, t0, t_end, p, ip, rtol, atol, max_step, t_eval, rec, ev_
         full_rhs(t, y, mode, p, ip, hist, yd, f)
         cnt[C_RHS] += 1
         cnt[C_RESTARTS] += 1
-        h_abs = initial_step(t, y, f, bound, max_step, rtol, atol, mode, p, ip, hist, yd, ytmp, y_new, cnt)
+        h_abs = initial_step(
+            t, y, f, bound, max_step, rtol, atol, mode, p, ip, hist, yd, ytmp, y_new, cnt
+        )
         if h_last > 0.0:
             # After an event the last accepted step is a better guess than the
             # heuristic, which overshoots and gets rejected after most impacts.
@@ -245,7 +269,34 @@ def integrate(y0, mode, t0, t_end, p, ip, rtol, atol, max_step, t_eval, rec, ev_
                 t = t_new
                 continue
             dense_coefficients(t, h, y, y_new, f_new, K, mode, p, ip, hist, yd, F, ytmp, cnt)
-            t_next, mode_next, fs, fside = after_step(t, t_new, y, y_new, F, mode, p, ip, hist, queue, qmeta, g_a, side, dirs, rates, g_b, t_eval, rec, ev_t, ev_kind, ev_slot, ev_mode, ev_y, cnt, y_next, work)
+            t_next, mode_next, fs, fside = after_step(
+                t,
+                t_new,
+                y,
+                y_new,
+                F,
+                mode,
+                p,
+                ip,
+                hist,
+                queue,
+                qmeta,
+                g_a,
+                side,
+                dirs,
+                rates,
+                g_b,
+                t_eval,
+                rec,
+                ev_t,
+                ev_kind,
+                ev_slot,
+                ev_mode,
+                ev_y,
+                cnt,
+                y_next,
+                work,
+            )
             y[:] = y_next
             t = t_next
             if fs >= 0 or mode_next != mode:

@@ -233,7 +233,9 @@ def rotor_rhs(t, y, yd, mode, p, ip, dy):
     dy[3] = (fy + cfy) / m
     j = ip[IP_JOURNAL]
     if j >= 0:
-        sx, sy = shaft_force(y[0], y[1], y[2], y[3], y[j], y[j + 1], y[j + 2], y[j + 3], p[P_K], p[P_CSH])
+        sx, sy = shaft_force(
+            y[0], y[1], y[2], y[3], y[j], y[j + 1], y[j + 2], y[j + 3], p[P_K], p[P_CSH]
+        )
         bx, by = bearing_force(y, p, ip)
         mj = p[P_MJ]
         dy[j] = y[j + 2]
