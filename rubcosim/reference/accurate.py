@@ -25,6 +25,7 @@ from .core import (
     after_step,
     full_rhs_alloc,
     needs_dense,
+    new_workspace,
     next_breakpoint,
     record_point,
     sides_from,
@@ -70,7 +71,7 @@ def integrate(
     dirs_b = np.zeros(N_EVENTS, dtype=np.int64)
     rates_b = np.zeros(N_EVENTS, dtype=np.int64)
     y_next = np.empty(n)
-    work = np.empty(n)
+    work = new_workspace(n, rec.shape[1])
     forced_slot, forced_side = -1, 0
     h_last = 0.0
     cnt[C_EVAL] = record_point(t, y, mode, p, ip, hist, t_eval, 0, rec, yd, np.empty(rec.shape[1]))

@@ -488,6 +488,19 @@ def max_history_age(p, ip):
 
 
 # ---------------------------------------------------------------- bookkeeping
+@nb.njit(cache=True)
+def new_workspace(n_state, n_outputs):
+    """Scratch arrays for :func:`after_step`, allocated once per run."""
+    return (
+        np.empty(n_state),
+        np.empty(N_DELAYED),
+        np.empty(n_outputs),
+        np.empty(N_EVENTS),
+        np.empty(N_EVENTS, dtype=np.int64),
+        np.empty(N_EVENTS, dtype=np.int64),
+    )
+
+
 # counters layout
 C_STEPS, C_REJECTED, C_RHS, C_EVENTS, C_IMPACTS, C_STATUS, C_EVAL, C_RESTARTS, C_SAME_TIME = range(
     9
@@ -545,12 +558,7 @@ def after_step(
     """
     n = y_b.shape[0]
     h = t_b - t_a
-    ybuf = work[:n]
-    yd = np.empty(N_DELAYED)
-    obuf = np.empty(rec.shape[1])
-    g = np.empty(N_EVENTS)
-    dtmp = np.empty(N_EVENTS, dtype=np.int64)
-    rtmp = np.empty(N_EVENTS, dtype=np.int64)
+    ybuf, yd, obuf, g, dtmp, rtmp = work
     k, te = find_event(
         t_a,
         t_b,

@@ -27,6 +27,7 @@ from .core import (
     after_step,
     full_rhs,
     needs_dense,
+    new_workspace,
     next_breakpoint,
     record_point,
     sides_from,
@@ -86,7 +87,7 @@ def initial_step(t0, y0, f0, t_bound, max_step, rtol, atol, mode, p, ip, hist, y
 
 
 @nb.njit(cache=True)
-def dense_coefficients(t_old, h, y_old, y_new, f_new, K, mode, p, ip, hist, yd, F, ytmp, cnt):
+def dense_coefficients(t_old, h, y_old, y_new, f_new, K, mode, p, ip, hist, yd, F, ytmp, dy, cnt):
     """DOP853 dense output (scipy's F layout) for the step just taken."""
     n = y_old.shape[0]
     for s in range(N_STAGES + 1, N_EXT):
@@ -95,13 +96,15 @@ def dense_coefficients(t_old, h, y_old, y_new, f_new, K, mode, p, ip, hist, yd, 
             for j in range(s):
                 acc += A[s, j] * K[j, i]
             ytmp[i] = y_old[i] + acc * h
-        full_rhs(t_old + C[s] * h, ytmp, mode, p, ip, hist, yd, K[s])
+        full_rhs(t_old + C[s] * h, ytmp, mode, p, ip, hist, yd, dy)
+        for i in range(n):
+            K[s, i] = dy[i]
         cnt[C_RHS] += 1
     for i in range(n):
-        dy = y_new[i] - y_old[i]
-        F[0, i] = dy
-        F[1, i] = h * K[0, i] - dy
-        F[2, i] = 2.0 * dy - h * (f_new[i] + K[0, i])
+        delta = y_new[i] - y_old[i]
+        F[0, i] = delta
+        F[1, i] = h * K[0, i] - delta
+        F[2, i] = 2.0 * delta - h * (f_new[i] + K[0, i])
         for r in range(D.shape[0]):
             acc = 0.0
             for j in range(N_EXT):
@@ -110,7 +113,7 @@ def dense_coefficients(t_old, h, y_old, y_new, f_new, K, mode, p, ip, hist, yd, 
 
 
 @nb.njit(cache=True)
-def rk_step(t, y, f, h, mode, p, ip, hist, yd, K, y_new, f_new, ytmp, cnt):
+def rk_step(t, y, f, h, mode, p, ip, hist, yd, K, y_new, f_new, ytmp, dy, cnt):
     n = y.shape[0]
     for i in range(n):
         K[0, i] = f[i]
@@ -120,7 +123,10 @@ def rk_step(t, y, f, h, mode, p, ip, hist, yd, K, y_new, f_new, ytmp, cnt):
             for j in range(s):
                 acc += A[s, j] * K[j, i]
             ytmp[i] = y[i] + acc * h
-        full_rhs(t + C[s] * h, ytmp, mode, p, ip, hist, yd, K[s])
+        # a scratch vector, not a row view of K: a view costs a reference count per stage
+        full_rhs(t + C[s] * h, ytmp, mode, p, ip, hist, yd, dy)
+        for i in range(n):
+            K[s, i] = dy[i]
     for i in range(n):
         acc = 0.0
         for j in range(N_STAGES):
@@ -185,7 +191,7 @@ def integrate(
     y_new = np.empty(n)
     f_new = np.empty(n)
     y_next = np.empty(n)
-    work = np.empty(n)
+    work = new_workspace(n, rec.shape[1])
     yd = np.empty(N_DELAYED)
     g_a = np.empty(N_EVENTS)
     side = np.zeros(N_EVENTS, dtype=np.int64)
@@ -195,6 +201,7 @@ def integrate(
     dirs_b = np.zeros(N_EVENTS, dtype=np.int64)
     rates_b = np.zeros(N_EVENTS, dtype=np.int64)
     ytmp = np.empty(n)
+    dy = np.empty(n)
     forced_slot, forced_side = -1, 0
     h_last = 0.0
     obuf = np.empty(rec.shape[1])
@@ -229,7 +236,7 @@ def integrate(
                     t_new = bound
                 h = t_new - t
                 h_abs = abs(h)
-                rk_step(t, y, f, h, mode, p, ip, hist, yd, K, y_new, f_new, ytmp, cnt)
+                rk_step(t, y, f, h, mode, p, ip, hist, yd, K, y_new, f_new, ytmp, dy, cnt)
                 err = error_norm(K, h, y, y_new, rtol, atol)
                 if not math.isfinite(err):
                     # A trial stage left the model's domain (e.g. the journal
@@ -268,7 +275,7 @@ def integrate(
                 sides_from(g_b, side)
                 t = t_new
                 continue
-            dense_coefficients(t, h, y, y_new, f_new, K, mode, p, ip, hist, yd, F, ytmp, cnt)
+            dense_coefficients(t, h, y, y_new, f_new, K, mode, p, ip, hist, yd, F, ytmp, dy, cnt)
             t_next, mode_next, fs, fside = after_step(
                 t,
                 t_new,

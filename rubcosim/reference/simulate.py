@@ -149,6 +149,10 @@ def simulate(
     max_step = min(max_step, system.min_delay())
     atol_arr = atol_rel * system.state_scale
     integrate = ENGINES[engine]
+    # Parameters travel as tuples: values, not reference-counted arrays, so the
+    # compiled kernels pay nothing for passing them down the call chain.
+    p_vals = tuple(float(v) for v in system.p)
+    ip_vals = tuple(int(v) for v in system.ip)
     warmup = _warm_up(system, engine, t_start, rtol, atol_rel, max_step)
     n = system.n_state
     capacity = history_capacity
@@ -172,8 +176,8 @@ def simulate(
             system.mode0,
             t_start,
             t_end,
-            system.p,
-            system.ip,
+            p_vals,
+            ip_vals,
             rtol,
             atol_arr,
             max_step,
