@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import numpy as np
 from scipy.integrate import DOP853
-from scipy.integrate._ivp.common import select_initial_step
 
 from .core import (
     C_EVAL,
@@ -84,14 +83,8 @@ def integrate(
         def fun(tt, yy, _mode=current_mode):
             return full_rhs_alloc(tt, yy, _mode, p, ip, hist)
 
-        first_step = None
-        if h_last > 0.0:
-            # Same restart rule as the fast engine: the heuristic, capped by the
-            # last accepted step.
-            f0 = fun(t, y)
-            cnt[C_RHS] += 2
-            guess = select_initial_step(fun, t, y, bound, max_step, f0, 1.0, 7, rtol, atol)
-            first_step = min(guess, h_last)
+        # Same restart rule as the fast engine: after an event, the last accepted step.
+        first_step = min(h_last, max_step, bound - t) if h_last > 0.0 else None
         solver = DOP853(
             fun, t, y, bound, rtol=rtol, atol=atol, max_step=max_step, first_step=first_step
         )

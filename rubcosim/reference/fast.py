@@ -213,13 +213,14 @@ def integrate(
         full_rhs(t, y, mode, p, ip, hist, yd, f)
         cnt[C_RHS] += 1
         cnt[C_RESTARTS] += 1
-        h_abs = initial_step(
-            t, y, f, bound, max_step, rtol, atol, mode, p, ip, hist, yd, ytmp, y_new, cnt
-        )
         if h_last > 0.0:
             # After an event the last accepted step is a better guess than the
-            # heuristic, which overshoots and gets rejected after most impacts.
-            h_abs = min(h_abs, h_last)
+            # starting heuristic, which overshoots and gets rejected after most impacts.
+            h_abs = min(h_last, max_step, bound - t)
+        else:
+            h_abs = initial_step(
+                t, y, f, bound, max_step, rtol, atol, mode, p, ip, hist, yd, ytmp, y_new, cnt
+            )
         while t < bound and cnt[C_STATUS] == STATUS_OK:
             min_step = 10.0 * abs(np.nextafter(t, np.inf) - t)
             if h_abs > max_step:
