@@ -17,12 +17,15 @@ from rubcosim.components.oscillator import elastic_stop_force, free_acceleration
 from rubcosim.components.rotor import free_whirl, jeffcott_force, shaft_force, unbalance_force
 from rubcosim.components.stator import (
     constraint_normal_force,
+    contact_force_components,
     contact_geometry,
     damping_from_restitution,
     penalty_contact_force,
+    penalty_normal_force,
     rigid_impact,
     rub_onset_speed_ratios,
     slip_speed,
+    sticking_friction,
 )
 
 
@@ -178,3 +181,23 @@ def test_oscillator_kernels():
     assert elastic_stop_force(1.5, 3, 1.0, 10.0) == pytest.approx(-5.0)
     assert elastic_stop_force(-1.5, 3, 1.0, 10.0) == 0.0
     assert elastic_stop_force(-1.5, 4, 1.0, 10.0) == pytest.approx(5.0)
+
+
+def test_sticking_friction_holds_slip_constant():
+    # fixed stator: the friction cancels the tangential load and the
+    # centripetal correction vt vn / dist
+    assert sticking_friction(3.0, 0.0, 0.0, 0.0, 1.0, 2.0, math.inf) == pytest.approx(-3.0)
+    assert sticking_friction(0.0, 0.0, 2.0, 0.5, 1.0, 2.0, math.inf) == pytest.approx(2.0)
+    # casing of mass ms: relative tangential acceleration zero
+    m, ms, fd, fs = 2.0, 3.0, 1.5, -0.5
+    ft = sticking_friction(fd, fs, 0.0, 0.0, 1.0, m, ms)
+    assert (fd + ft) / m - (fs - ft) / ms == pytest.approx(0.0, abs=1e-15)
+
+
+def test_penalty_normal_force_and_components():
+    fn, dist, nx, ny = penalty_normal_force(3e-4, 4e-4, 1.0, 0.0, 4e-4, 1e6, 10.0)
+    assert dist == pytest.approx(5e-4)
+    assert (nx, ny) == pytest.approx((0.6, 0.8))
+    assert fn == pytest.approx(1e6 * 1e-4 + 10.0 * 0.6)
+    fx, fy = contact_force_components(2.0, 1.0, 0.6, 0.8)
+    assert (fx, fy) == pytest.approx((-2.0 * 0.6 - 1.0 * 0.8, -2.0 * 0.8 + 1.0 * 0.6))

@@ -232,3 +232,33 @@ def test_simulate_rejects_bad_arguments():
         simulate(system, 1.0, rtol=1e-20)
     with pytest.raises(ValueError, match="sim.atol"):
         simulate(system, 1.0, atol=0.0)
+
+
+@pytest.mark.parametrize("engine", ["fast", "accurate"])
+def test_grazing_contact_inside_one_step_is_found(engine):
+    # free linear oscillator x = -A cos(t) (no forcing, no damping) and a barrier
+    # 1e-4 below its peak: the contact would last 0.028 s, far shorter than the
+    # ~0.3 s steps DOP853 takes here, and the gap does not change sign between
+    # step ends.  The extremum of the gap must be found and checked.
+    amp = 1.0
+    osc = make_unit(
+        "oscillator",
+        "impact_oscillator",
+        dict(linear_stiffness=1.0, forcing_frequency=1.0, barrier=amp - 1e-4, restitution=1.0, x0=-amp),
+    )
+    res = simulate(build_system({"oscillator": osc}), 4.0, output_step=0.5, engine=engine, rtol=1e-8)
+    assert res.ok
+    assert res.counters["steps"] < 40  # big steps indeed
+    assert res.counters["impacts"] == 1
+    # first touch where -cos(t) = 1 - 1e-4
+    assert res.events.t[0] == pytest.approx(math.pi - math.acos(1 - 1e-4), abs=1e-5)
+
+
+def test_output_grid_ends_exactly_at_t_end():
+    from rubcosim.reference import output_grid
+
+    grid = output_grid(0.0, 1.0, 0.3)
+    assert grid[0] == 0.0 and grid[-1] == 1.0
+    assert np.allclose(np.diff(grid[:-1]), 0.3)
+    assert output_grid(0.0, 1.0, 0.25)[-1] == 1.0
+    assert len(output_grid(0.0, 1.0, 0.25)) == 5

@@ -3,7 +3,6 @@
 import math
 
 import pytest
-
 from rubcosim.components.catalog import UNIT_TYPES
 from rubcosim.components.controller import CONTROLLER_PARAMS
 from rubcosim.components.oscillator import OSCILLATOR_PARAMS, STOP_KINDS
@@ -18,6 +17,7 @@ from rubcosim.components.parameters import (
 )
 from rubcosim.components.rotor import JEFFCOTT_PARAMS
 from rubcosim.components.stator import ELASTIC_PARAMS, RIGID_PARAMS
+
 from rubcosim.reference.assemble import Unit, build_system, make_unit
 
 
@@ -323,7 +323,11 @@ def test_make_unit_unknown_type():
 def test_make_unit_bad_param_names_field():
     raises_param(["rotor.mass", "(0, inf]"], make_unit, "rotor", "jeffcott", {**ROTOR, "mass": -1})
     raises_param(
-        ["stator.restitution", "[0, 1]"], make_unit, "stator", "rigid", {**RIGID, "restitution": 1.5}
+        ["stator.restitution", "[0, 1]"],
+        make_unit,
+        "stator",
+        "rigid",
+        {**RIGID, "restitution": 1.5},
     )
     raises_param(
         ["oscillator.restitution", "[0, 1]"],
@@ -422,7 +426,9 @@ def test_oilfilm_needs_speed():
 @pytest.mark.parametrize("barrier", [0.0, -0.5])
 def test_two_sided_stop_needs_positive_barrier(stop, barrier):
     q = {**OSC, "stop": stop, "barrier": barrier, "stop_stiffness": 10.0}
-    raises_param(["oscillator.barrier", "> 0"], build_system, units(oscillator=("impact_oscillator", q)))
+    raises_param(
+        ["oscillator.barrier", "> 0"], build_system, units(oscillator=("impact_oscillator", q))
+    )
 
 
 def test_one_sided_stop_allows_any_barrier():
@@ -433,21 +439,31 @@ def test_one_sided_stop_allows_any_barrier():
 @pytest.mark.parametrize("stop", ["elastic_one_sided", "elastic_two_sided"])
 def test_elastic_stop_needs_stiffness(stop):
     q = {**OSC, "stop": stop, "stop_stiffness": 0.0}
-    raises_param(["oscillator.stop_stiffness", "> 0"], build_system, units(oscillator=("impact_oscillator", q)))
+    raises_param(
+        ["oscillator.stop_stiffness", "> 0"],
+        build_system,
+        units(oscillator=("impact_oscillator", q)),
+    )
 
 
 def test_rigid_oscillator_starting_beyond_barrier():
     q = {**OSC, "x0": 1.5}  # default barrier 1, rigid one-sided
-    raises_param(["oscillator.x0", "barrier"], build_system, units(oscillator=("impact_oscillator", q)))
+    raises_param(
+        ["oscillator.x0", "barrier"], build_system, units(oscillator=("impact_oscillator", q))
+    )
     q = {**OSC, "stop": "rigid_two_sided", "x0": -1.5}
-    raises_param(["oscillator.x0", "barrier"], build_system, units(oscillator=("impact_oscillator", q)))
+    raises_param(
+        ["oscillator.x0", "barrier"], build_system, units(oscillator=("impact_oscillator", q))
+    )
     q = {**OSC, "stop": "elastic_one_sided", "stop_stiffness": 5.0, "x0": 1.5}
     build_system(units(oscillator=("impact_oscillator", q)))
 
 
 def controller_system(speed=ROTOR["speed"], **given):
     rotor = {**ROTOR, "speed": speed}
-    return units(rotor=("jeffcott", rotor), controller=("delayed_feedback", {**CONTROLLER, **given}))
+    return units(
+        rotor=("jeffcott", rotor), controller=("delayed_feedback", {**CONTROLLER, **given})
+    )
 
 
 def test_controller_modulation_amplitude_must_be_below_delay():
@@ -507,7 +523,7 @@ def test_controller_delay_from_periods():
 @pytest.mark.xfail(
     strict=True,
     reason="bug: make_unit tests `type_ not in kinds` on a dict, so an unhashable type "
-    "(a list, e.g. TOML type = [\"jeffcott\"]) raises TypeError instead of ParameterError",
+    '(a list, e.g. TOML type = ["jeffcott"]) raises TypeError instead of ParameterError',
 )
 def test_make_unit_unhashable_type():
     raises_param(["rotor.type"], make_unit, "rotor", ["jeffcott"], ROTOR)
