@@ -48,7 +48,8 @@ class Param:
             return "true or false"
         lo = "(" if self.low_open else "["
         hi = ")" if self.high_open else "]"
-        return f"a {self.kind} in {lo}{self.low:g}, {self.high:g}{hi}"
+        kind = "an integer" if self.kind == "int" else "a real number"
+        return f"{kind} in {lo}{self.low:g}, {self.high:g}{hi}"
 
     def coerce(self, unit: str, value: Any) -> Any:
         """Return ``value`` converted to this parameter's type, or raise."""
@@ -65,14 +66,21 @@ class Param:
             raise ParameterError(f"{field} = {value!r} is not {self.allowed()}")
         if isinstance(value, bool) or not isinstance(value, int | float):
             raise ParameterError(f"{field} = {value!r} is not a number; expected {self.allowed()}")
+        if isinstance(value, float) and not math.isfinite(value):
+            raise ParameterError(f"{field} = {value!r} is not finite; expected {self.allowed()}")
         if self.kind == "int":
-            if float(value) != int(value):
-                raise ParameterError(f"{field} = {value!r} is not an integer")
-            value = int(value)
+            if isinstance(value, float):
+                if not value.is_integer():
+                    raise ParameterError(
+                        f"{field} = {value!r} is not an integer; expected {self.allowed()}"
+                    )
+                value = int(value)
         else:
             value = float(value)
-        if not math.isfinite(value):
-            raise ParameterError(f"{field} = {value!r} is not finite")
+            if not math.isfinite(value):  # an int too large for a float
+                raise ParameterError(
+                    f"{field} = {value!r} is not finite; expected {self.allowed()}"
+                )
         below = value <= self.low if self.low_open else value < self.low
         above = value >= self.high if self.high_open else value > self.high
         if below or above:

@@ -40,9 +40,10 @@ def _parser() -> argparse.ArgumentParser:
 
 
 def cmd_run(args: argparse.Namespace) -> int:
-    from .runner import run_scenario, write_results
+    from .runner import check_output_dir, run_scenario, write_results
 
     scenario = load_scenario(args.scenario, args.set)
+    check_output_dir(args.out)
     run = run_scenario(scenario, engine=args.engine)
     out = write_results(run, args.out)
     r = run.result

@@ -15,7 +15,11 @@ import numpy as np
 from rubcosim.reference.simulate import Result, output_grid, simulate
 from rubcosim.reference.system import KIND_NAMES
 
-from .scenario import Scenario
+from .scenario import Scenario, ScenarioError
+
+
+class OutputPathError(ScenarioError):
+    """The output directory cannot be used (nothing has been written)."""
 
 
 @dataclass
@@ -100,6 +104,18 @@ def report(run: ScenarioRun) -> dict[str, Any]:
     }
 
 
+def check_output_dir(out_dir: str | Path) -> Path:
+    """Refuse an output path that is a file, or the working directory or one of its parents."""
+    out = Path(out_dir)
+    resolved = out.resolve()
+    if out.exists() and not out.is_dir():
+        raise OutputPathError(f"--out {out_dir}: exists and is not a directory")
+    cwd = Path.cwd().resolve()
+    if resolved == cwd or resolved in cwd.parents:
+        raise OutputPathError(f"--out {out_dir}: is the working directory or contains it")
+    return out
+
+
 def write_results(run: ScenarioRun, out_dir: str | Path) -> Path:
     """Write everything into a fresh directory, then move it to ``out_dir``.
 
@@ -108,7 +124,7 @@ def write_results(run: ScenarioRun, out_dir: str | Path) -> Path:
     """
     from . import plots  # matplotlib only when writing
 
-    out = Path(out_dir)
+    out = check_output_dir(out_dir)
     out.parent.mkdir(parents=True, exist_ok=True)
     tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
     try:

@@ -46,6 +46,9 @@ SIM_DEFAULTS: dict[str, Any] = {
     "poincare_phase": 0.0,
 }
 PLOT_KINDS = ("orbit", "timeseries", "poincare")
+SCENARIO_KEYS = ("name", "description")
+MAX_EVENTS_LIMIT = 10_000_000
+MAX_OUTPUT_POINTS = 10_000_000
 TOP_LEVEL = ("scenario", "sim", "units", "outputs", "plots")
 
 
@@ -112,11 +115,22 @@ def _sim_settings(raw: Mapping[str, Any]) -> dict[str, Any]:
         raise ScenarioError(f"sim.rtol = {sim['rtol']!r} is outside [{MIN_RTOL:.3g}, 1)")
     if not 0.0 < sim["chatter_tol"] < 1.0:
         raise ScenarioError(f"sim.chatter_tol = {sim['chatter_tol']!r} is outside (0, 1)")
-    if sim["engine"] not in ENGINES:
+    if not isinstance(sim["engine"], str) or sim["engine"] not in ENGINES:
         raise ScenarioError(f"sim.engine = {sim['engine']!r} is not one of {', '.join(ENGINES)}")
     me = sim["max_events"]
-    if isinstance(me, bool) or not isinstance(me, int) or me < 1:
-        raise ScenarioError(f"sim.max_events = {me!r} must be a positive integer")
+    if isinstance(me, bool) or not isinstance(me, int) or not 1 <= me <= MAX_EVENTS_LIMIT:
+        raise ScenarioError(
+            f"sim.max_events = {me!r} must be an integer in [1, {MAX_EVENTS_LIMIT}]"
+        )
+    step = sim["output_step"] or (sim["t_end"] - sim["t_start"]) / 1000.0
+    if (sim["t_end"] - sim["t_start"]) / step > MAX_OUTPUT_POINTS:
+        raise ScenarioError(
+            f"sim.output_step = {step!r} gives more than {MAX_OUTPUT_POINTS} output points"
+        )
+    if sim["output_step"] is None:
+        sim["output_step"] = step
+    if sim["atol"] is None:
+        sim["atol"] = sim["rtol"]
     if sim["poincare_discard"] < 0.0:
         raise ScenarioError("sim.poincare_discard must be >= 0")
     return sim
@@ -145,6 +159,11 @@ def build_scenario(
             f"[{unknown[0]}] is not a scenario section (known: {', '.join(TOP_LEVEL)})"
         )
     meta = _check_table("[scenario]", data.get("scenario", {}))
+    unknown = sorted(set(meta) - set(SCENARIO_KEYS))
+    if unknown:
+        raise ScenarioError(
+            f"scenario.{unknown[0]} is not a key of [scenario] (known: name, description)"
+        )
     units_raw = _check_table("[units]", data.get("units", {}))
     if not units_raw:
         raise ScenarioError("[units] is empty: name at least a rotor or an oscillator")
@@ -189,6 +208,8 @@ def build_scenario(
     if unknown:
         raise ScenarioError(f"outputs.{unknown[0]} is not a key of [outputs] (known: record)")
     record = _names("outputs.record", outputs["record"]) if "record" in outputs else None
+    if record is not None and not record:
+        raise ScenarioError("outputs.record is empty: name at least one output, or leave it out")
     for name in record or []:
         if name not in system.output_names:
             available = ", ".join(system.output_names)
@@ -202,6 +223,8 @@ def build_scenario(
     for kind, names in plots.items():
         if kind not in PLOT_KINDS:
             raise ScenarioError(f"plots.{kind} is not a plot kind (known: {', '.join(PLOT_KINDS)})")
+        if not names:
+            raise ScenarioError(f"plots.{kind} is empty: name the outputs to plot, or leave it out")
         if kind in ("orbit", "poincare") and len(names) != 2:
             raise ScenarioError(f"plots.{kind} needs exactly two output names [x, y]")
         for name in names:

@@ -244,9 +244,17 @@ def test_grazing_contact_inside_one_step_is_found(engine):
     osc = make_unit(
         "oscillator",
         "impact_oscillator",
-        dict(linear_stiffness=1.0, forcing_frequency=1.0, barrier=amp - 1e-4, restitution=1.0, x0=-amp),
+        dict(
+            linear_stiffness=1.0,
+            forcing_frequency=1.0,
+            barrier=amp - 1e-4,
+            restitution=1.0,
+            x0=-amp,
+        ),
     )
-    res = simulate(build_system({"oscillator": osc}), 4.0, output_step=0.5, engine=engine, rtol=1e-8)
+    res = simulate(
+        build_system({"oscillator": osc}), 4.0, output_step=0.5, engine=engine, rtol=1e-8
+    )
     assert res.ok
     assert res.counters["steps"] < 40  # big steps indeed
     assert res.counters["impacts"] == 1

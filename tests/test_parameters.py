@@ -39,14 +39,15 @@ def raises_param(match_all, func, *args):
 
 
 def test_allowed_texts():
-    assert positive("m", None, "kg", "").allowed() == "a real in (0, inf]"
-    assert nonnegative("c", 0.0, "", "").allowed() == "a real in [0, inf]"
-    assert real("r", 0.5, "", "", 0.0, 1.0).allowed() == "a real in [0, 1]"
-    assert real("r", 0.5, "", "", 0.0, 1.0, high_open=True).allowed() == "a real in [0, 1)"
-    assert real("x", 0.0, "", "").allowed() == "a real in [-inf, inf]"
+    assert positive("m", None, "kg", "").allowed() == "a real number in (0, inf]"
+    assert nonnegative("c", 0.0, "", "").allowed() == "a real number in [0, inf]"
+    assert real("r", 0.5, "", "", 0.0, 1.0).allowed() == "a real number in [0, 1]"
+    assert real("r", 0.5, "", "", 0.0, 1.0, high_open=True).allowed() == "a real number in [0, 1)"
+    assert real("x", 0.0, "", "").allowed() == "a real number in [-inf, inf]"
     assert choice("s", "a", "", ("a", "b")).allowed() == "one of 'a', 'b'"
     assert Param("f", False, "", "", "bool").allowed() == "true or false"
     assert "[1, 1e+06]" in spec(CONTROLLER_PARAMS, "delay_periods").allowed()
+    assert spec(CONTROLLER_PARAMS, "delay_periods").allowed() == "an integer in [1, 1e+06]"
 
 
 # --------------------------------------------------------------------------- real
@@ -109,11 +110,6 @@ def test_real_non_finite_is_rejected(value):
     raises_param(["rotor.mass"], p.coerce, "rotor", value)
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="bug: Param.coerce's 'is not finite' message does not state the allowed range "
-    "(parameters.py docstring: every message states the allowed values)",
-)
 def test_real_non_finite_message_states_allowed_range():
     p = spec(JEFFCOTT_PARAMS, "mass")
     raises_param(["rotor.mass", "(0, inf]"], p.coerce, "rotor", math.inf)
@@ -154,20 +150,11 @@ def test_int_range_is_checked():
     raises_param(["controller.delay_periods", "[1, 1e+06]"], p.coerce, "controller", 10**6 + 1)
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="bug: Param.coerce's 'is not an integer' message does not state the allowed range",
-)
 def test_int_fraction_message_states_allowed_range():
     p = spec(CONTROLLER_PARAMS, "delay_periods")
     raises_param(["controller.delay_periods", "[1, 1e+06]"], p.coerce, "controller", 2.5)
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="bug: Param.coerce for kind='int' calls int(value) before the finiteness check: "
-    "inf raises OverflowError, nan a plain ValueError, not ParameterError",
-)
 @pytest.mark.parametrize("value", [math.inf, -math.inf, math.nan])
 def test_int_non_finite_is_a_parameter_error(value):
     p = spec(CONTROLLER_PARAMS, "delay_periods")
@@ -520,10 +507,5 @@ def test_controller_delay_from_periods():
     assert system.min_delay() == pytest.approx(3 * 2 * math.pi / ROTOR["speed"])
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="bug: make_unit tests `type_ not in kinds` on a dict, so an unhashable type "
-    '(a list, e.g. TOML type = ["jeffcott"]) raises TypeError instead of ParameterError',
-)
 def test_make_unit_unhashable_type():
     raises_param(["rotor.type"], make_unit, "rotor", ["jeffcott"], ROTOR)

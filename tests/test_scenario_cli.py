@@ -325,22 +325,11 @@ def test_rotor_base_file_is_valid(tmp_path):
     assert sc.system.output_names[:2] == ["rotor.x", "rotor.y"]
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="bug: an empty plot list (plots.timeseries = []) is accepted by build_scenario and "
-    "then crashes matplotlib in write_results (ValueError: Number of rows must be a positive "
-    "integer) after the simulation, with a traceback",
-)
 def test_empty_timeseries_is_rejected(tmp_path):
     path = write(tmp_path, changed(OSC_DATA, (("plots", "timeseries"), [])))
     scenario_error(path, (), "plots.timeseries")
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="bug: unknown keys in [scenario] (e.g. a misspelt 'descripton') are silently ignored, "
-    "unlike every other table of the scenario file",
-)
 def test_unknown_scenario_key_is_rejected(tmp_path):
     path = write(tmp_path, changed(OSC_DATA, (("scenario", "descripton"), "typo")))
     scenario_error(path, (), "scenario.descripton")
@@ -421,12 +410,6 @@ def test_oscillator_restitution_override():
     scenario_error(LINEAR_OSC, ["oscillator.restitution=1.5"], "oscillator.restitution", "[0, 1]")
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="bug: unhashable or non-finite override values escape as TypeError/OverflowError/"
-    "ValueError instead of ScenarioError (sim.engine and unit type are tested with `in dict`; "
-    "the int parameter controller.delay_periods calls int(inf))",
-)
 @pytest.mark.parametrize(
     "override",
     [
@@ -891,11 +874,6 @@ def test_cli_bad_engine_flag(tmp_path, capsys):
     assert not out.exists()
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="bug: write_results replaces whatever exists at --out, so an existing regular file "
-    "is silently deleted and replaced by a result directory",
-)
 def test_cli_out_is_existing_file(tmp_path, capsys):
     target = tmp_path / "precious.txt"
     target.write_text("data")
@@ -904,11 +882,6 @@ def test_cli_out_is_existing_file(tmp_path, capsys):
     assert rc == 2
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="bug: --out . makes write_results rename the working directory: OSError traceback "
-    "and a stray '..old.*' directory left behind",
-)
 def test_cli_out_is_current_directory(tmp_path, capsys, monkeypatch):
     work = tmp_path / "work"
     work.mkdir()
@@ -973,3 +946,28 @@ def test_cli_subprocess(tmp_path):
     one_error_line(bad.stderr, "oscillator.restitution")
     assert bad.stdout == ""
     assert snapshot(out) == before
+
+
+# --------------------------------------------------------------------------- limits and settings as used
+
+
+@pytest.mark.parametrize(
+    ("override", "key"),
+    [
+        ("sim.max_events=100000000", "sim.max_events"),
+        ("sim.output_step=1e-9", "sim.output_step"),
+    ],
+)
+def test_resource_limits_are_checked_before_running(override, key):
+    scenario_error(LINEAR_OSC, [override], key)
+
+
+def test_empty_record_list_is_rejected(tmp_path):
+    path = write(tmp_path, changed(OSC_DATA, (("outputs", "record"), [])))
+    scenario_error(path, (), "outputs.record")
+
+
+def test_parameters_record_settings_as_used():
+    sc = load_scenario(LINEAR_OSC, ["sim.rtol=1e-9"])
+    assert sc.parameters["sim.output_step"] == sc.sim["output_step"] > 0
+    assert sc.parameters["sim.atol"] == 1e-9

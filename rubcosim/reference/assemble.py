@@ -68,7 +68,7 @@ def make_unit(role: str, type_: str, given: Mapping[str, Any]) -> Unit:
     if role not in UNIT_TYPES:
         raise ParameterError(f"unit {role!r} is not known (known units: {', '.join(UNIT_TYPES)})")
     kinds = UNIT_TYPES[role]
-    if type_ not in kinds:
+    if not isinstance(type_, str) or type_ not in kinds:
         raise ParameterError(f"{role}.type = {type_!r} is not one of {', '.join(kinds)}")
     return Unit(role, type_, resolve(role, kinds[type_], given))
 
