@@ -948,7 +948,7 @@ def test_cli_subprocess(tmp_path):
     assert snapshot(out) == before
 
 
-# --------------------------------------------------------------------------- limits and settings as used
+# ------------------------------------------------------------------ limits, settings as used
 
 
 @pytest.mark.parametrize(
