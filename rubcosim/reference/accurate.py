@@ -24,6 +24,7 @@ from .core import (
     after_step,
     full_rhs_alloc,
     needs_dense,
+    new_event_state,
     new_workspace,
     next_breakpoint,
     record_point,
@@ -31,7 +32,7 @@ from .core import (
     start_sides,
     step_end_events,
 )
-from .system import N_DELAYED, N_EVENTS
+from .system import N_DELAYED
 
 
 def integrate(
@@ -62,13 +63,7 @@ def integrate(
     t = float(t0)
     n = y.shape[0]
     yd = np.empty(N_DELAYED)
-    g_a = np.empty(N_EVENTS)
-    side = np.zeros(N_EVENTS, dtype=np.int64)
-    dirs = np.zeros(N_EVENTS, dtype=np.int64)
-    rates = np.zeros(N_EVENTS, dtype=np.int64)
-    g_b = np.empty(N_EVENTS)
-    dirs_b = np.zeros(N_EVENTS, dtype=np.int64)
-    rates_b = np.zeros(N_EVENTS, dtype=np.int64)
+    g_a, side, dirs, rates, g_b, dirs_b, rates_b = new_event_state()
     y_next = np.empty(n)
     work = new_workspace(n, rec.shape[1])
     forced_slot, forced_side = -1, 0

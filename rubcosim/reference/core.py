@@ -212,7 +212,16 @@ def next_breakpoint(t, t_end, p, ip, queue, qmeta):
 
 # ---------------------------------------------------------------- events
 @nb.njit(cache=True)
-def event_value(slot, t, t_old, h, y_old, F, mode, p, ip, hist, ybuf, yd, g, dirs, rates):
+def event_value(slot, t, seg, ctx, hist, scratch):
+    """Event function ``slot`` at time t on the dense segment ``seg``.
+
+    ``seg = (t_old, h, y_old, F)``; ``ctx = (mode, p, ip)``;
+    ``scratch = (ybuf, yd, g, dirs, rates)``.  ``hist`` stays an argument of
+    its own so that numba can compile away the delay when it is None.
+    """
+    t_old, h, y_old, F = seg
+    mode, p, ip = ctx
+    ybuf, yd, g, dirs, rates = scratch
     dense_eval(t_old, h, y_old, F, t, ybuf, ybuf.shape[0])
     delayed_state(t, p, ip, hist, yd)
     events(t, ybuf, yd, mode, p, ip, g, dirs, rates)
@@ -220,9 +229,7 @@ def event_value(slot, t, t_old, h, y_old, F, mode, p, ip, hist, ybuf, yd, g, dir
 
 
 @nb.njit(cache=True)
-def locate(
-    slot, sgn, ta, fa, tb, fb, t_old, h, y_old, F, mode, p, ip, hist, ybuf, yd, g, dirs, rates
-):
+def locate(slot, sgn, ta, fa, tb, fb, seg, ctx, hist, scratch):
     """Bracket [ta, tb] of a zero of ``sgn * g_slot`` (fa > 0 >= fb).
 
     Brent's method: inverse quadratic interpolation through three points,
@@ -265,37 +272,25 @@ def locate(
             xcur += scur
         else:
             xcur += delta if sbis > 0.0 else -delta
-        fcur = sgn * event_value(
-            slot, xcur, t_old, h, y_old, F, mode, p, ip, hist, ybuf, yd, g, dirs, rates
-        )
+        fcur = sgn * event_value(slot, xcur, seg, ctx, hist, scratch)
     if fcur <= 0.0:
         return xcur
     return xblk
 
 
 @nb.njit(cache=True)
-def find_event(
-    t_a,
-    t_b,
-    t_old,
-    h,
-    y_old,
-    F,
-    mode,
-    p,
-    ip,
-    hist,
-    g_a,
-    side_a,
-    dirs_a,
-    rates_a,
-    g_b,
-    ybuf,
-    yd,
-    g,
-    dirs,
-    rates,
-):
+def pre_side(direction, side):
+    """Sign of an event function before it fires: +1 for a falling event, -1
+    for a rising one, the current side for a breakpoint; 0 if undetermined."""
+    if direction == -1:
+        return 1.0
+    if direction == 1:
+        return -1.0
+    return float(side)
+
+
+@nb.njit(cache=True)
+def find_event(t_a, t_b, seg, ctx, hist, scratch, g_a, side_a, dirs_a, rates_a, g_b):
     """Earliest event in (t_a, t_b] of the step's dense output, or (-1, t_b).
 
     ``side_a[k]`` is the side (+1/-1) of slot k at t_a, ``g_b`` the event
@@ -306,10 +301,9 @@ def find_event(
     best_k = -1
     best_t = t_b
     for k in range(N_EVENTS):
-        d = dirs_a[k]
-        if d == 0:
+        if dirs_a[k] == 0:
             continue
-        sgn = 1.0 if d == -1 else (-1.0 if d == 1 else float(side_a[k]))
+        sgn = pre_side(dirs_a[k], side_a[k])
         if sgn == 0.0:
             continue
         left = t_a
@@ -319,88 +313,22 @@ def find_event(
             right = t_b
             if j >= 0 and sgn * g_a[j] > 0.0 and sgn * g_b[j] < 0.0:
                 # Moving away first, then back through zero: start past the extremum.
-                ts = locate(
-                    j,
-                    sgn,
-                    t_a,
-                    sgn * g_a[j],
-                    t_b,
-                    sgn * g_b[j],
-                    t_old,
-                    h,
-                    y_old,
-                    F,
-                    mode,
-                    p,
-                    ip,
-                    hist,
-                    ybuf,
-                    yd,
-                    g,
-                    dirs,
-                    rates,
-                )
-                left = ts
+                left = locate(j, sgn, t_a, sgn * g_a[j], t_b, sgn * g_b[j], seg, ctx, hist, scratch)
         elif j >= 0 and sgn * g_a[j] < 0.0 and sgn * g_b[j] > 0.0:
             # Approaching, then receding within the step: does it touch at the extremum?
-            ts = locate(
-                j,
-                -sgn,
-                t_a,
-                -sgn * g_a[j],
-                t_b,
-                -sgn * g_b[j],
-                t_old,
-                h,
-                y_old,
-                F,
-                mode,
-                p,
-                ip,
-                hist,
-                ybuf,
-                yd,
-                g,
-                dirs,
-                rates,
-            )
-            gs = event_value(k, ts, t_old, h, y_old, F, mode, p, ip, hist, ybuf, yd, g, dirs, rates)
-            if sgn * gs <= 0.0:
+            ts = locate(j, -sgn, t_a, -sgn * g_a[j], t_b, -sgn * g_b[j], seg, ctx, hist, scratch)
+            if sgn * event_value(k, ts, seg, ctx, hist, scratch) <= 0.0:
                 right = ts
         if right < 0.0 or right > best_t or (right == best_t and best_k >= 0):
             continue
-        fl = sgn * event_value(
-            k, left, t_old, h, y_old, F, mode, p, ip, hist, ybuf, yd, g, dirs, rates
-        )
-        fr = sgn * event_value(
-            k, right, t_old, h, y_old, F, mode, p, ip, hist, ybuf, yd, g, dirs, rates
-        )
+        fl = sgn * event_value(k, left, seg, ctx, hist, scratch)
+        fr = sgn * event_value(k, right, seg, ctx, hist, scratch)
         if fl <= 0.0:
             # Round-off at the start of a step just after an event: treat it as the pre side.
             fl = 1e-300
         if fr > 0.0:
             continue
-        te = locate(
-            k,
-            sgn,
-            left,
-            fl,
-            right,
-            fr,
-            t_old,
-            h,
-            y_old,
-            F,
-            mode,
-            p,
-            ip,
-            hist,
-            ybuf,
-            yd,
-            g,
-            dirs,
-            rates,
-        )
+        te = locate(k, sgn, left, fl, right, fr, seg, ctx, hist, scratch)
         if best_k < 0 or te < best_t:
             best_k = k
             best_t = te
@@ -412,10 +340,9 @@ def event_candidate(g_a, side_a, dirs_a, rates_a, g_b):
     """Whether the step may hold an event: a sign change, or a rate companion
     that changes sign (a possible grazing contact).  Cheap; no dense output."""
     for k in range(N_EVENTS):
-        d = dirs_a[k]
-        if d == 0:
+        if dirs_a[k] == 0:
             continue
-        sgn = 1.0 if d == -1 else (-1.0 if d == 1 else float(side_a[k]))
+        sgn = pre_side(dirs_a[k], side_a[k])
         if sgn == 0.0:
             continue
         if sgn * g_b[k] <= 0.0:
@@ -489,6 +416,21 @@ def max_history_age(p, ip):
 
 # ---------------------------------------------------------------- bookkeeping
 @nb.njit(cache=True)
+def new_event_state():
+    """Event functions, sides, directions and rate slots at a step's start
+    (``g_a, side, dirs, rates``) and end (``g_b, dirs_b, rates_b``)."""
+    return (
+        np.empty(N_EVENTS),
+        np.zeros(N_EVENTS, dtype=np.int64),
+        np.zeros(N_EVENTS, dtype=np.int64),
+        np.zeros(N_EVENTS, dtype=np.int64),
+        np.empty(N_EVENTS),
+        np.zeros(N_EVENTS, dtype=np.int64),
+        np.zeros(N_EVENTS, dtype=np.int64),
+    )
+
+
+@nb.njit(cache=True)
 def new_workspace(n_state, n_outputs):
     """Scratch arrays for :func:`after_step`, allocated once per run."""
     return (
@@ -559,27 +501,9 @@ def after_step(
     n = y_b.shape[0]
     h = t_b - t_a
     ybuf, yd, obuf, g, dtmp, rtmp = work
+    seg = (t_a, h, y_old, F)
     k, te = find_event(
-        t_a,
-        t_b,
-        t_a,
-        h,
-        y_old,
-        F,
-        mode,
-        p,
-        ip,
-        hist,
-        g_a,
-        side,
-        dirs,
-        rates,
-        g_b,
-        ybuf,
-        yd,
-        g,
-        dtmp,
-        rtmp,
+        t_a, t_b, seg, (mode, p, ip), hist, (ybuf, yd, g, dtmp, rtmp), g_a, side, dirs, rates, g_b
     )
     t_hi = te if k >= 0 else t_b
     cnt[C_EVAL] = record(

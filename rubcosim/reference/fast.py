@@ -27,6 +27,7 @@ from .core import (
     after_step,
     full_rhs,
     needs_dense,
+    new_event_state,
     new_workspace,
     next_breakpoint,
     record_point,
@@ -193,13 +194,7 @@ def integrate(
     y_next = np.empty(n)
     work = new_workspace(n, rec.shape[1])
     yd = np.empty(N_DELAYED)
-    g_a = np.empty(N_EVENTS)
-    side = np.zeros(N_EVENTS, dtype=np.int64)
-    dirs = np.zeros(N_EVENTS, dtype=np.int64)
-    rates = np.zeros(N_EVENTS, dtype=np.int64)
-    g_b = np.empty(N_EVENTS)
-    dirs_b = np.zeros(N_EVENTS, dtype=np.int64)
-    rates_b = np.zeros(N_EVENTS, dtype=np.int64)
+    g_a, side, dirs, rates, g_b, dirs_b, rates_b = new_event_state()
     ytmp = np.empty(n)
     dy = np.empty(n)
     forced_slot, forced_side = -1, 0
