@@ -58,7 +58,7 @@ HM_START, HM_COUNT, HM_OVERFLOW = 0, 1, 2
 Q_START, Q_COUNT, Q_DROPPED = 0, 1, 2
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, inline="always")
 def dense_eval(t_old, h, y_old, F, t, out, ncomp):
     """Evaluate scipy's DOP853 dense output on the first ``ncomp`` components."""
     x = (t - t_old) / h
@@ -211,7 +211,7 @@ def next_breakpoint(t, t_end, p, ip, queue, qmeta):
 
 
 # ---------------------------------------------------------------- events
-@nb.njit(cache=True)
+@nb.njit(cache=True, inline="always")
 def event_value(slot, t, seg, ctx, hist, scratch):
     """Event function ``slot`` at time t on the dense segment ``seg``.
 
@@ -311,8 +311,9 @@ def find_event(t_a, t_b, seg, ctx, hist, scratch, g_a, side_a, dirs_a, rates_a, 
         j = rates_a[k]
         if sgn * g_b[k] <= 0.0:
             right = t_b
-            if j >= 0 and sgn * g_a[j] > 0.0 and sgn * g_b[j] < 0.0:
-                # Moving away first, then back through zero: start past the extremum.
+            if j >= 0 and sgn * g_a[k] <= 0.0 and sgn * g_a[j] > 0.0 and sgn * g_b[j] < 0.0:
+                # Starting on the surface (just after an event), moving away, then
+                # back through zero: bracket from the extremum, not from the start.
                 left = locate(j, sgn, t_a, sgn * g_a[j], t_b, sgn * g_b[j], seg, ctx, hist, scratch)
         elif j >= 0 and sgn * g_a[j] < 0.0 and sgn * g_b[j] > 0.0:
             # Approaching, then receding within the step: does it touch at the extremum?

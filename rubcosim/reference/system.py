@@ -272,7 +272,7 @@ def rhs(t, y, yd, mode, p, ip, dy):
         oscillator_rhs(t, y, mode, p, ip, dy)
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, inline="always")
 def rotor_events(t, y, yd, mode, p, ip, g, dirs, rates):
     kind = ip[IP_STATOR]
     if kind == STATOR_NONE:
@@ -301,7 +301,7 @@ def rotor_events(t, y, yd, mode, p, ip, g, dirs, rates):
         dirs[2] = -1 if mode == MODE_SLIDE_POS else 1
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, inline="always")
 def oscillator_events(t, y, mode, p, ip, g, dirs, rates):
     stop = ip[IP_STOP]
     if stop == STOP_NONE:
@@ -327,7 +327,7 @@ def oscillator_events(t, y, mode, p, ip, g, dirs, rates):
         rates[2] = 3
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, inline="always")
 def events(t, y, yd, mode, p, ip, g, dirs, rates):
     """Fill the event functions ``g``, their directions and rate companions."""
     for k in range(N_EVENTS):
