@@ -31,7 +31,7 @@ test: lint
 	$(PY) -m pytest -n 2 --durations=15
 
 bench: $(STAMP)
-	$(PY) benchmarks/bench_engines.py
+	$(PY) benchmarks/bench_engines.py --periods 200
 
 clean:
 	rm -rf $(VENV) build results .pytest_cache
