@@ -15,6 +15,11 @@ if TYPE_CHECKING:
     from .runner import ScenarioRun
 
 
+def _sci(ax) -> None:
+    """Scientific tick labels with a shared exponent (displacements are ~1e-4 m)."""
+    ax.ticklabel_format(axis="both", style="sci", scilimits=(-2, 3), useMathText=True)
+
+
 def _default_pair(run: ScenarioRun) -> list[str]:
     names = run.scenario.system.output_names
     return ["rotor.x", "rotor.y"] if "rotor.y" in names else ["oscillator.x", "oscillator.v"]
@@ -44,6 +49,7 @@ def orbit(run: ScenarioRun, names: list[str], path: Path) -> None:
         ax.legend(loc="upper right", fontsize=8)
     ax.set_xlabel(names[0])
     ax.set_ylabel(names[1])
+    _sci(ax)
     ax.set_title(f"{run.scenario.name}: orbit ({run.result.engine})")
     fig.tight_layout()
     fig.savefig(path, dpi=120)
@@ -57,6 +63,7 @@ def timeseries(run: ScenarioRun, names: list[str], path: Path) -> None:
     for ax, name in zip(axes[:, 0], names, strict=True):
         ax.plot(run.time, run.series(name), lw=0.7)
         ax.set_ylabel(name, fontsize=8)
+        _sci(ax)
     axes[-1, 0].set_xlabel("time (s)")
     axes[0, 0].set_title(f"{run.scenario.name}: time series ({run.result.engine})")
     fig.tight_layout()
@@ -69,6 +76,7 @@ def poincare(run: ScenarioRun, names: list[str], path: Path) -> None:
     ax.plot(run.poincare(names[0]), run.poincare(names[1]), ".", ms=3)
     ax.set_xlabel(names[0])
     ax.set_ylabel(names[1])
+    _sci(ax)
     sim = run.scenario.sim
     first = sim["t_start"] + sim["poincare_discard"]
     ax.set_title(
