@@ -270,3 +270,37 @@ def test_output_grid_ends_exactly_at_t_end():
     assert np.allclose(np.diff(grid[:-1]), 0.3)
     assert output_grid(0.0, 1.0, 0.25)[-1] == 1.0
     assert len(output_grid(0.0, 1.0, 0.25)) == 5
+
+
+@pytest.mark.parametrize("stop", ["elastic_one_sided", "elastic_two_sided"])
+def test_piecewise_linear_stop_contact_duration(stop):
+    # x'' + x = 0, stop of stiffness k2 beyond |x| = D: inside the stop the
+    # motion is harmonic at w2 = sqrt(1 + k2) about x_e = k2 D / (1 + k2);
+    # entering at x = D with speed v, the contact lasts 2 atan2(v / w2, D - x_e) / w2.
+    amp, barrier, k2 = 1.0, 0.6, 50.0
+    osc = make_unit(
+        "oscillator",
+        "impact_oscillator",
+        dict(
+            linear_stiffness=1.0,
+            forcing_frequency=1.0,
+            barrier=barrier,
+            stop=stop,
+            stop_stiffness=k2,
+            v0=amp,
+        ),
+    )
+    res = simulate(
+        build_system({"oscillator": osc}), 20.0, output_step=0.05, engine="fast", rtol=1e-12
+    )
+    assert res.ok
+    on = res.events.t[res.events.of_kind("contact_on")]
+    off = res.events.t[res.events.of_kind("contact_off")]
+    w2 = math.sqrt(1 + k2)
+    v = math.sqrt(amp**2 - barrier**2)
+    expected = 2 * math.atan2(v / w2, barrier - k2 * barrier / (1 + k2)) / w2
+    assert len(on) >= 3 and len(off) >= 3
+    assert off[: len(on)] - on[: len(off)] == pytest.approx(expected, rel=1e-9)
+    if stop == "elastic_two_sided":
+        assert np.any(res.events.slot == 2)  # the lower stop is hit too
+    assert np.all(np.abs(res.output("oscillator.x")) <= amp + 1e-9)  # no energy gained

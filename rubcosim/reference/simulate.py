@@ -60,6 +60,8 @@ class Result:
     t_reached: float
     final_state: np.ndarray
     final_mode: int
+    # steps, rejected_steps (fast engine only: scipy does not expose its
+    # rejections), rhs_evaluations, restarts, events, impacts, ...
     counters: dict[str, int] = field(default_factory=dict)
     wall_time_s: float = 0.0  # the integration alone
     warmup_s: float = 0.0  # loading/compiling the engine in this process, if it happened here
