@@ -416,6 +416,18 @@ def max_history_age(p, ip):
 
 
 # ---------------------------------------------------------------- bookkeeping
+def new_event_log(max_events: int, n_state: int):
+    """Event log arrays: time, kind, slot, mode after, state after."""
+    # np.empty: only the pages of events that happen are ever touched
+    return (
+        np.empty(max_events),
+        np.empty(max_events, dtype=np.int64),
+        np.empty(max_events, dtype=np.int64),
+        np.empty(max_events, dtype=np.int64),
+        np.empty((max_events, n_state)),
+    )
+
+
 @nb.njit(cache=True)
 def new_event_state():
     """Event functions, sides, directions and rate slots at a step's start
@@ -482,11 +494,7 @@ def after_step(
     g_b,
     t_eval,
     rec,
-    ev_t,
-    ev_kind,
-    ev_slot,
-    ev_mode,
-    ev_y,
+    evlog,
     cnt,
     y_out,
     work,
@@ -523,6 +531,7 @@ def after_step(
     delayed_state(te, p, ip, hist, yd)
     new_mode, kind = apply_event(k, te, y_out, yd, mode, p, ip)
     i_ev = cnt[C_EVENTS]
+    ev_t, ev_kind, ev_slot, ev_mode, ev_y = evlog
     if i_ev < ev_t.shape[0]:
         ev_t[i_ev] = te
         ev_kind[i_ev] = kind

@@ -24,6 +24,7 @@ from .core import (
     STATUS_HISTORY_OVERFLOW,
     STATUS_MESSAGES,
     STATUS_OK,
+    new_event_log,
     new_history,
 )
 from .system import KIND_NAMES
@@ -160,12 +161,7 @@ def simulate(
     capacity = history_capacity
     while True:
         rec = np.full((t_eval.shape[0], len(system.output_names)), np.nan)
-        # np.empty: only the pages of events that happen are ever touched
-        ev_t = np.empty(max_events)
-        ev_kind = np.empty(max_events, dtype=np.int64)
-        ev_slot = np.empty(max_events, dtype=np.int64)
-        ev_mode = np.empty(max_events, dtype=np.int64)
-        ev_y = np.empty((max_events, n))
+        evlog = new_event_log(max_events, n)
         # No controller, no history: the engines compile a delay-free variant.
         hist = new_history(capacity, t_start, system.y0) if system.has_delay else None
         queue = np.zeros(capacity if system.has_delay else 1)
@@ -185,11 +181,7 @@ def simulate(
             max_step,
             t_eval,
             rec,
-            ev_t,
-            ev_kind,
-            ev_slot,
-            ev_mode,
-            ev_y,
+            evlog,
             hist,
             queue,
             qmeta,
@@ -213,7 +205,7 @@ def simulate(
         t=t_eval,
         outputs=rec,
         output_names=list(system.output_names),
-        events=Events(ev_t[:n_ev], ev_kind[:n_ev], ev_slot[:n_ev], ev_mode[:n_ev], ev_y[:n_ev]),
+        events=Events(*(a[:n_ev] for a in evlog)),
         status=status,
         message=message,
         t_reached=float(t_reached),
