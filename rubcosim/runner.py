@@ -105,7 +105,8 @@ def report(run: ScenarioRun) -> dict[str, Any]:
 
 
 def check_output_dir(out_dir: str | Path) -> Path:
-    """Refuse an output path that is a file, or the working directory or one of its parents."""
+    """Refuse an output path that is a file, the working directory or one of its
+    parents, or a non-empty directory that is not an earlier result."""
     out = Path(out_dir)
     resolved = out.resolve()
     if out.exists() and not out.is_dir():
@@ -113,6 +114,11 @@ def check_output_dir(out_dir: str | Path) -> Path:
     cwd = Path.cwd().resolve()
     if resolved == cwd or resolved in cwd.parents:
         raise OutputPathError(f"--out {out_dir}: is the working directory or contains it")
+    if out.is_dir() and any(out.iterdir()) and not (out / "report.json").is_file():
+        # Only an earlier result (it has a report.json) is ever replaced.
+        raise OutputPathError(
+            f"--out {out_dir}: is a non-empty directory that holds no earlier result"
+        )
     return out
 
 

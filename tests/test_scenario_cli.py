@@ -833,6 +833,7 @@ def test_cli_good_run_replaces_old_result(tmp_path, capsys):
     out.mkdir()
     (out / "stale.txt").write_text("old")
     (out / "results.csv").write_text("old")
+    (out / "report.json").write_text("{}")
     assert main(["run", str(LINEAR_OSC), "--set", OSC_SHORT, "--out", str(out)]) == 0
     assert not (out / "stale.txt").exists()
     assert (out / "results.csv").read_text().startswith("time,")
@@ -971,3 +972,14 @@ def test_parameters_record_settings_as_used():
     sc = load_scenario(LINEAR_OSC, ["sim.rtol=1e-9"])
     assert sc.parameters["sim.output_step"] == sc.sim["output_step"] > 0
     assert sc.parameters["sim.atol"] == 1e-9
+
+
+def test_cli_refuses_to_replace_a_foreign_directory(tmp_path, capsys):
+    target = tmp_path / "documents"
+    target.mkdir()
+    (target / "thesis.tex").write_text("precious")
+    rc = main(["run", str(LINEAR_OSC), "--set", OSC_SHORT, "--out", str(target)])
+    assert rc == 2
+    assert "holds no earlier result" in capsys.readouterr().err
+    assert sorted(p.name for p in target.iterdir()) == ["thesis.tex"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["documents"]
