@@ -81,14 +81,13 @@ def integrate(
         )
         cnt[C_RESTARTS] += 1
         while solver.status == "running" and cnt[C_STATUS] == STATUS_OK:
-            message = solver.step()
+            solver.step()
             if solver.status == "failed":
                 cnt[C_STATUS] = STATUS_STEP_TOO_SMALL
                 break
             if not np.all(np.isfinite(solver.y)):
                 cnt[C_STATUS] = STATUS_NONFINITE
                 break
-            del message
             cnt[C_STEPS] += 1
             h_last = solver.step_size
             step_end_events(solver.t, solver.y, mode, p, ip, hist, yd, g_b, dirs_b, rates_b)
