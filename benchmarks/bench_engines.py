@@ -67,11 +67,11 @@ from typing import Any
 import numba
 import numpy as np
 import scipy
+from scipy.integrate import solve_ivp
+
 from rubcosim.components.oscillator import free_acceleration, impact_velocity
 from rubcosim.components.rotor import jeffcott_force
 from rubcosim.components.stator import contact_geometry, rigid_impact
-from scipy.integrate import solve_ivp
-
 from rubcosim.reference import System, build_system, make_unit, simulate
 
 REPO = Path(__file__).resolve().parents[1]

@@ -10,19 +10,18 @@ from __future__ import annotations
 
 import math
 
-import numba as nb
-
+from .jit import njit
 from .parameters import nonnegative, positive
 
 OILFILM_PARAMS = (
-    positive("viscosity", None, "Pa s", "dynamic viscosity of the oil"),
-    positive("radius", None, "m", "journal radius R"),
-    positive("length", None, "m", "bearing length L"),
-    positive("clearance", None, "m", "radial clearance cr of the bearing"),
+    positive("viscosity", None, "Pa s", "dynamic viscosity of the oil", example=0.02),
+    positive("radius", None, "m", "journal radius R", example=0.03),
+    positive("length", None, "m", "bearing length L", example=0.03),
+    positive("clearance", None, "m", "radial clearance cr of the bearing", example=1.5e-4),
 )
 
 LINEAR_PARAMS = (
-    positive("stiffness", None, "N/m", "bearing stiffness (isotropic)"),
+    positive("stiffness", None, "N/m", "bearing stiffness (isotropic)", example=1e7),
     nonnegative("damping", 0.0, "N s/m", "bearing damping (isotropic)"),
 )
 
@@ -39,7 +38,7 @@ def oilfilm_sigma(viscosity: float, speed: float, radius: float, length: float, 
     )
 
 
-@nb.njit(cache=True)
+@njit
 def capone_force(x: float, y: float, xp: float, yp: float) -> tuple[float, float]:
     """Nondimensional Capone short-bearing force on the journal.
 
@@ -72,7 +71,7 @@ def capone_force(x: float, y: float, xp: float, yp: float) -> tuple[float, float
     )
 
 
-@nb.njit(cache=True)
+@njit
 def oilfilm_force(
     x: float,
     y: float,
@@ -87,7 +86,7 @@ def oilfilm_force(
     return sigma * fx, sigma * fy
 
 
-@nb.njit(cache=True)
+@njit
 def linear_bearing_force(
     x: float, y: float, vx: float, vy: float, k: float, c: float
 ) -> tuple[float, float]:

@@ -13,12 +13,11 @@ from __future__ import annotations
 
 import math
 
-import numba as nb
-
-from .parameters import Param, choice, nonnegative, real
+from .jit import njit
+from .parameters import Param, ParameterError, choice, nonnegative, real
 
 CONTROLLER_PARAMS = (
-    real("gain", None, "N/m", "feedback gain K (N s/m for velocity feedback)"),
+    real("gain", None, "N/m", "feedback gain K (N s/m for velocity feedback)", example=1e5),
     real("delay", -1.0, "s", "delay tau0; negative means delay_periods forcing periods", -1.0),
     Param("delay_periods", 1, "1", "delay in forcing periods when delay < 0", "int", 1.0, 1e6),
     nonnegative("t_on", 0.0, "s", "time at which the control is switched on"),
@@ -28,13 +27,41 @@ CONTROLLER_PARAMS = (
 )
 
 
-@nb.njit(cache=True)
+@njit
 def delay_at(t: float, tau0: float, eps: float, nu: float) -> float:
     """Delay tau(t) = tau0 + eps sin(nu t), s."""
     return tau0 + eps * math.sin(nu * t)
 
 
-@nb.njit(cache=True)
+@njit
 def feedback_force(gain: float, now: float, delayed: float) -> float:
     """Pyragas force on one axis: K (z(t - tau) - z(t))."""
     return gain * (delayed - now)
+
+
+def base_delay(
+    params: dict, speed: float, unit: str = "controller", speed_name: str = "rotor.speed"
+) -> float:
+    """The delay tau0, s, from the controller's parameters and the rotor speed (rad/s).
+
+    Also checks what no single parameter's range can: the delay is positive,
+    the modulation keeps it positive and keeps the delayed time moving forward.
+    """
+    if speed <= 0.0 and params["delay"] < 0.0:
+        raise ParameterError(f"{unit}.delay_periods needs {speed_name} > 0 (or give {unit}.delay)")
+    tau0 = (
+        params["delay"]
+        if params["delay"] >= 0.0
+        else params["delay_periods"] * 2.0 * math.pi / speed
+    )
+    if tau0 <= 0.0:
+        raise ParameterError(f"{unit}.delay must be > 0")
+    eps, nu = params["modulation_amplitude"], params["modulation_frequency"]
+    if eps >= tau0:
+        raise ParameterError(f"{unit}.modulation_amplitude must be smaller than the delay")
+    if eps * nu >= 1.0:
+        raise ParameterError(
+            f"{unit}.modulation_amplitude * {unit}.modulation_frequency must be < 1 "
+            "(the delayed time must keep moving forward)"
+        )
+    return tau0

@@ -19,9 +19,8 @@ from __future__ import annotations
 
 import math
 
-import numba as nb
-
-from .parameters import choice, nonnegative, positive, real
+from .jit import njit
+from .parameters import ParameterError, choice, nonnegative, positive, real
 
 STOP_KINDS = (
     "none",
@@ -32,11 +31,11 @@ STOP_KINDS = (
 )
 
 OSCILLATOR_PARAMS = (
-    real("linear_stiffness", None, "1/s^2", "linear stiffness a (per unit mass)"),
+    real("linear_stiffness", None, "1/s^2", "linear stiffness a (per unit mass)", example=1.0),
     nonnegative("damping", 0.0, "1/s", "viscous damping b (per unit mass)"),
     real("cubic_stiffness", 0.0, "1/(m^2 s^2)", "cubic stiffness (Duffing term)"),
     nonnegative("forcing_amplitude", 0.0, "m/s^2", "forcing amplitude f"),
-    positive("forcing_frequency", None, "rad/s", "forcing frequency w"),
+    positive("forcing_frequency", None, "rad/s", "forcing frequency w", example=2.0),
     real("barrier", 1.0, "m", "barrier position D"),
     real("restitution", 0.8, "1", "Newton restitution R at a rigid stop", 0.0, 1.0),
     choice("stop", "rigid_one_sided", "kind of stop", STOP_KINDS),
@@ -52,7 +51,7 @@ STOP_ELASTIC_ONE = 3
 STOP_ELASTIC_TWO = 4
 
 
-@nb.njit(cache=True)
+@njit
 def free_acceleration(
     t: float, x: float, v: float, a: float, b: float, c3: float, f: float, w: float
 ) -> float:
@@ -60,7 +59,7 @@ def free_acceleration(
     return f * math.cos(w * t) - b * v - a * x - c3 * x * x * x
 
 
-@nb.njit(cache=True)
+@njit
 def elastic_stop_force(x: float, kind: int, barrier: float, ks: float) -> float:
     """Restoring force of a piecewise-linear stop, per unit mass."""
     if kind == STOP_ELASTIC_ONE or kind == STOP_ELASTIC_TWO:
@@ -71,7 +70,21 @@ def elastic_stop_force(x: float, kind: int, barrier: float, ks: float) -> float:
     return 0.0
 
 
-@nb.njit(cache=True)
+@njit
 def impact_velocity(v: float, restitution: float) -> float:
     """Newton's law at a rigid stop: v+ = -R v-."""
     return -restitution * v
+
+
+def check_oscillator(params: dict, unit: str = "oscillator") -> None:
+    """Checks across parameters: a two-sided stop needs D > 0, an elastic stop a
+    stiffness, and the mass must not start beyond a rigid barrier."""
+    stop, barrier = params["stop"], params["barrier"]
+    two_sided = stop.endswith("two_sided")
+    if two_sided and barrier <= 0.0:
+        raise ParameterError(f"{unit}.barrier = {barrier!r} must be > 0 for a two-sided stop")
+    if stop.startswith("elastic") and params["stop_stiffness"] <= 0.0:
+        raise ParameterError(f"{unit}.stop_stiffness must be > 0 for an elastic stop")
+    x0 = params["x0"]
+    if stop.startswith("rigid") and (x0 > barrier or (two_sided and x0 < -barrier)):
+        raise ParameterError(f"{unit}.x0 = {x0!r} starts beyond the rigid barrier")

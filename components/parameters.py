@@ -39,6 +39,7 @@ class Param:
     low_open: bool = False
     high_open: bool = False
     choices: tuple[str, ...] = ()
+    example: Any = None  # a typical value for a required parameter (FMU start values, docs)
 
     def allowed(self) -> str:
         """Human-readable statement of the allowed values."""
@@ -100,16 +101,23 @@ def real(
     *,
     low_open: bool = False,
     high_open: bool = False,
+    example: float | None = None,
 ) -> Param:
-    return Param(name, default, unit, description, "real", low, high, low_open, high_open)
+    return Param(
+        name, default, unit, description, "real", low, high, low_open, high_open, example=example
+    )
 
 
-def positive(name: str, default: float | None, unit: str, description: str) -> Param:
-    return real(name, default, unit, description, 0.0, low_open=True)
+def positive(
+    name: str, default: float | None, unit: str, description: str, example: float | None = None
+) -> Param:
+    return real(name, default, unit, description, 0.0, low_open=True, example=example)
 
 
-def nonnegative(name: str, default: float | None, unit: str, description: str) -> Param:
-    return real(name, default, unit, description, 0.0)
+def nonnegative(
+    name: str, default: float | None, unit: str, description: str, example: float | None = None
+) -> Param:
+    return real(name, default, unit, description, 0.0, example=example)
 
 
 def choice(name: str, default: str, description: str, choices: tuple[str, ...]) -> Param:

@@ -15,8 +15,7 @@ from __future__ import annotations
 
 import math
 
-import numba as nb
-
+from .jit import njit
 from .parameters import nonnegative, positive, real
 
 _STATE = (
@@ -27,11 +26,11 @@ _STATE = (
 )
 
 JEFFCOTT_PARAMS = (
-    positive("mass", None, "kg", "disc mass m"),
+    positive("mass", None, "kg", "disc mass m", example=10.0),
     nonnegative("damping", 0.0, "N s/m", "viscous damping c of the disc to ground"),
-    positive("stiffness", None, "N/m", "shaft stiffness k"),
+    positive("stiffness", None, "N/m", "shaft stiffness k", example=1e6),
     nonnegative("eccentricity", 0.0, "m", "unbalance eccentricity e"),
-    nonnegative("speed", None, "rad/s", "spin speed w (x->y sense)"),
+    nonnegative("speed", None, "rad/s", "spin speed w (x->y sense)", example=379.473319),
     nonnegative("gravity", 0.0, "m/s^2", "gravitational acceleration g along -y"),
     nonnegative(
         "disc_radius", 0.0, "m", "radius Rd of the rubbing surface (slip speed v.t + Rd w)"
@@ -41,7 +40,7 @@ JEFFCOTT_PARAMS = (
 
 TWO_MASS_PARAMS = (
     *JEFFCOTT_PARAMS,
-    positive("journal_mass", None, "kg", "journal mass in the bearing"),
+    positive("journal_mass", None, "kg", "journal mass in the bearing", example=2.0),
     nonnegative("journal_damping", 0.0, "N s/m", "viscous damping of the journal to ground"),
     nonnegative("shaft_damping", 0.0, "N s/m", "damping of the shaft between journal and disc"),
     real("journal_x0", 0.0, "m", "initial journal displacement along x"),
@@ -51,14 +50,14 @@ TWO_MASS_PARAMS = (
 )
 
 
-@nb.njit(cache=True)
+@njit
 def unbalance_force(t: float, m: float, e: float, w: float) -> tuple[float, float]:
     """Rotating unbalance force on the disc, N: m e w^2 (cos wt, sin wt)."""
     a = m * e * w * w
     return a * math.cos(w * t), a * math.sin(w * t)
 
 
-@nb.njit(cache=True)
+@njit
 def jeffcott_force(
     t: float,
     x: float,
@@ -77,7 +76,7 @@ def jeffcott_force(
     return ux - c * vx - k * x, uy - c * vy - k * y - m * g
 
 
-@nb.njit(cache=True)
+@njit
 def shaft_force(
     xd: float,
     yd: float,

@@ -14,12 +14,11 @@ from __future__ import annotations
 
 import math
 
-import numba as nb
-
+from .jit import njit
 from .parameters import nonnegative, positive, real
 
 _GEOMETRY = (
-    positive("clearance", None, "m", "radial clearance d between disc and stator"),
+    positive("clearance", None, "m", "radial clearance d between disc and stator", example=1e-4),
     real("x_offset", 0.0, "m", "stator centre x0 (offset rotor when nonzero)"),
     real("y_offset", 0.0, "m", "stator centre y0 (offset rotor when nonzero)"),
     nonnegative("friction", 0.0, "1", "Coulomb friction coefficient mu"),
@@ -32,7 +31,7 @@ RIGID_PARAMS = (
 
 ELASTIC_PARAMS = (
     *_GEOMETRY,
-    positive("contact_stiffness", None, "N/m", "penalty contact stiffness kc"),
+    positive("contact_stiffness", None, "N/m", "penalty contact stiffness kc", example=2e7),
     real(
         "contact_damping",
         -1.0,
@@ -45,8 +44,8 @@ ELASTIC_PARAMS = (
 
 CASING_PARAMS = (
     *ELASTIC_PARAMS,
-    positive("mass", None, "kg", "casing mass ms"),
-    positive("stiffness", None, "N/m", "casing support stiffness ks"),
+    positive("mass", None, "kg", "casing mass ms", example=5.0),
+    positive("stiffness", None, "N/m", "casing support stiffness ks", example=2e6),
     nonnegative("damping", 0.0, "N s/m", "casing support damping cs"),
     real("x0", 0.0, "m", "initial casing displacement along x"),
     real("y0", 0.0, "m", "initial casing displacement along y"),
@@ -55,7 +54,7 @@ CASING_PARAMS = (
 )
 
 
-@nb.njit(cache=True)
+@njit
 def contact_geometry(rx: float, ry: float) -> tuple[float, float, float]:
     """Distance and outward unit normal for the relative position r = p - c.
 
@@ -68,13 +67,13 @@ def contact_geometry(rx: float, ry: float) -> tuple[float, float, float]:
     return dist, rx / dist, ry / dist
 
 
-@nb.njit(cache=True)
+@njit
 def slip_speed(vx: float, vy: float, nx: float, ny: float, rd: float, w: float) -> float:
     """Slip speed vs = v.t + Rd w of the disc surface over the stator, m/s."""
     return -vx * ny + vy * nx + rd * w
 
 
-@nb.njit(cache=True)
+@njit
 def rigid_impact(
     vx: float,
     vy: float,
@@ -109,7 +108,7 @@ def rigid_impact(
     return vn_new * nx - vt_new * ny, vn_new * ny + vt_new * nx
 
 
-@nb.njit(cache=True)
+@njit
 def penalty_normal_force(
     rx: float, ry: float, rvx: float, rvy: float, d: float, kc: float, cc: float
 ):
@@ -124,14 +123,14 @@ def penalty_normal_force(
     return kc * (dist - d) + cc * (rvx * nx + rvy * ny), dist, nx, ny
 
 
-@nb.njit(cache=True)
+@njit
 def contact_force_components(fn: float, ft: float, nx: float, ny: float) -> tuple[float, float]:
     """Cartesian force on the disc from a normal force ``fn`` (pushing along -n)
     and a tangential force ``ft`` (along t)."""
     return -fn * nx - ft * ny, -fn * ny + ft * nx
 
 
-@nb.njit(cache=True)
+@njit
 def penalty_contact_force(
     rx: float,
     ry: float,
@@ -160,7 +159,7 @@ def penalty_contact_force(
     return fx, fy, fn
 
 
-@nb.njit(cache=True)
+@njit
 def sticking_friction(
     ft_disc: float, ft_stator: float, vt: float, vn: float, dist: float, m: float, ms: float
 ) -> float:
@@ -177,7 +176,7 @@ def sticking_friction(
     return rhs / inv
 
 
-@nb.njit(cache=True)
+@njit
 def constraint_normal_force(
     fx: float,
     fy: float,

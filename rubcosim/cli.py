@@ -36,7 +36,31 @@ def _parser() -> argparse.ArgumentParser:
         required=True,
         help="output directory (replaced only when the new result is complete)",
     )
+    build = sub.add_parser("build-fmus", help="build every unit as an FMI 2.0 co-simulation FMU")
+    build.add_argument(
+        "--out", default="build/fmus", help="directory for the .fmu files (default: build/fmus)"
+    )
+    build.add_argument(
+        "--only",
+        action="append",
+        default=[],
+        metavar="MODEL_IDENTIFIER",
+        help="build only this FMU, e.g. RubcosimJeffcottRotor (repeatable)",
+    )
     return ap
+
+
+def cmd_build_fmus(args: argparse.Namespace) -> int:
+    from rubcosim.fmus.build import BuildError, BuildRequestError, build_fmus
+
+    try:
+        built = build_fmus(args.out, only=args.only or None)
+    except BuildError as exc:
+        print(f"rubcosim: error: {exc}", file=sys.stderr)
+        return EXIT_BAD_INPUT if isinstance(exc, BuildRequestError) else EXIT_RUN_FAILED
+    for path in built:
+        print(path)
+    return 0
 
 
 def cmd_run(args: argparse.Namespace) -> int:
@@ -63,6 +87,8 @@ def main(argv: list[str] | None = None) -> int:
     try:
         if args.command == "run":
             return cmd_run(args)
+        if args.command == "build-fmus":
+            return cmd_build_fmus(args)
     except (ScenarioError, ParameterError) as exc:
         print(f"rubcosim: error: {exc}", file=sys.stderr)
         return EXIT_BAD_INPUT

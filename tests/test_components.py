@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+
 from rubcosim.components.bearing import (
     capone_force,
     linear_bearing_force,

@@ -3,6 +3,7 @@
 import math
 
 import pytest
+
 from rubcosim.components.catalog import UNIT_TYPES
 from rubcosim.components.controller import CONTROLLER_PARAMS
 from rubcosim.components.oscillator import OSCILLATOR_PARAMS, STOP_KINDS
@@ -17,7 +18,6 @@ from rubcosim.components.parameters import (
 )
 from rubcosim.components.rotor import JEFFCOTT_PARAMS
 from rubcosim.components.stator import ELASTIC_PARAMS, RIGID_PARAMS
-
 from rubcosim.reference.assemble import Unit, build_system, make_unit
 
 

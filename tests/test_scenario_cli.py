@@ -11,9 +11,9 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from rubcosim.components.catalog import UNIT_TYPES
 
 from rubcosim.cli import EXIT_BAD_INPUT, EXIT_RUN_FAILED, main
+from rubcosim.components.catalog import UNIT_TYPES
 from rubcosim.runner import report, run_scenario, strobe_times
 from rubcosim.scenario import (
     PLOT_KINDS,

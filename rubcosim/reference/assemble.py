@@ -11,7 +11,8 @@ import numpy as np
 
 from rubcosim.components.bearing import oilfilm_sigma
 from rubcosim.components.catalog import UNIT_TYPES
-from rubcosim.components.oscillator import STOP_KINDS
+from rubcosim.components.controller import base_delay
+from rubcosim.components.oscillator import STOP_KINDS, check_oscillator
 from rubcosim.components.parameters import ParameterError, resolve
 from rubcosim.components.stator import damping_from_restitution
 
@@ -91,17 +92,8 @@ def build_system(units: Mapping[str, Unit], chatter_tol: float = DEFAULT_CHATTER
 
 def _oscillator_system(u: Unit, chatter_tol: float) -> System:
     q = u.params
+    check_oscillator(q)
     stop = STOP_KINDS.index(q["stop"])
-    two_sided = q["stop"].endswith("two_sided")
-    if two_sided and q["barrier"] <= 0.0:
-        raise ParameterError(
-            f"oscillator.barrier = {q['barrier']!r} must be > 0 for a two-sided stop"
-        )
-    if q["stop"].startswith("elastic") and q["stop_stiffness"] <= 0.0:
-        raise ParameterError("oscillator.stop_stiffness must be > 0 for an elastic stop")
-    x0 = q["x0"]
-    if q["stop"].startswith("rigid") and (x0 > q["barrier"] or (two_sided and x0 < -q["barrier"])):
-        raise ParameterError(f"oscillator.x0 = {x0!r} starts beyond the rigid barrier")
     p = np.zeros(S.N_P)
     p[S.P_A] = q["linear_stiffness"]
     p[S.P_B] = q["damping"]
@@ -229,20 +221,7 @@ def _rotor_system(units: Mapping[str, Unit], chatter_tol: float) -> System:
 
     if controller is not None:
         c = controller.params
-        if w <= 0.0 and c["delay"] < 0.0:
-            raise ParameterError(
-                "controller.delay_periods needs rotor.speed > 0 (or give controller.delay)"
-            )
-        tau0 = c["delay"] if c["delay"] >= 0.0 else c["delay_periods"] * 2.0 * math.pi / w
-        if tau0 <= 0.0:
-            raise ParameterError("controller.delay must be > 0")
-        if c["modulation_amplitude"] >= tau0:
-            raise ParameterError("controller.modulation_amplitude must be smaller than the delay")
-        if c["modulation_amplitude"] * c["modulation_frequency"] >= 1.0:
-            raise ParameterError(
-                "controller.modulation_amplitude * controller.modulation_frequency must be < 1 "
-                "(the delayed time must keep moving forward)"
-            )
+        tau0 = base_delay(c, w)
         ip[S.IP_CONTROL] = S.CONTROL_POSITION if c["feedback"] == "position" else S.CONTROL_VELOCITY
         p[S.P_KCTL] = c["gain"]
         p[S.P_TAU0] = tau0

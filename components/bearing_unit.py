@@ -1,0 +1,78 @@
+"""Bearing units: the journal state in, the bearing force on the journal out."""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+from .bearing import (
+    LINEAR_PARAMS,
+    OILFILM_PARAMS,
+    linear_bearing_force,
+    oilfilm_force,
+    oilfilm_sigma,
+)
+from .parameters import positive
+from .unit import Unit, real_signal
+
+JOURNAL_INPUTS = (
+    real_signal("x", "m", "journal displacement along x"),
+    real_signal("y", "m", "journal displacement along y"),
+    real_signal("vx", "m/s", "journal velocity along x"),
+    real_signal("vy", "m/s", "journal velocity along y"),
+)
+
+FORCE_OUTPUTS = (
+    real_signal("fx", "N", "bearing force on the journal along x"),
+    real_signal("fy", "N", "bearing force on the journal along y"),
+)
+
+
+class _Bearing(Unit):
+    role = "bearing"
+    inputs = JOURNAL_INPUTS
+    outputs = FORCE_OUTPUTS
+
+    def _initial_state(self) -> dict[str, Any]:
+        return {}
+
+    def _advance(self, t: float, h: float) -> None:
+        """The bearing force is algebraic in the journal state: nothing to integrate."""
+
+
+class OilFilmBearingUnit(_Bearing):
+    """Capone short-bearing oil film."""
+
+    type_name = "oilfilm"
+    summary = "nonlinear oil-film bearing (Capone short-bearing model)"
+    params_spec = (
+        *OILFILM_PARAMS,
+        positive("speed", None, "rad/s", "journal spin speed w", example=700.0),
+    )
+
+    def _outputs(self) -> dict[str, float]:
+        q, u = self.params, self.u
+        sigma = oilfilm_sigma(q["viscosity"], q["speed"], q["radius"], q["length"], q["clearance"])
+        fx, fy = oilfilm_force(u["x"], u["y"], u["vx"], u["vy"], q["speed"], q["clearance"], sigma)
+        if not (math.isfinite(fx) and math.isfinite(fy)):
+            ratio = math.hypot(u["x"], u["y"]) / q["clearance"]
+            raise ValueError(
+                f"{self.name}: the journal touches the bearing wall (eccentricity ratio "
+                f"{ratio:.6g} >= 1); the oil-film model has no force there"
+            )
+        return {"fx": fx, "fy": fy}
+
+
+class LinearBearingUnit(_Bearing):
+    """Isotropic spring-damper bearing."""
+
+    type_name = "linear"
+    summary = "linear isotropic spring-damper bearing"
+    params_spec = LINEAR_PARAMS
+
+    def _outputs(self) -> dict[str, float]:
+        q, u = self.params, self.u
+        fx, fy = linear_bearing_force(
+            u["x"], u["y"], u["vx"], u["vy"], q["stiffness"], q["damping"]
+        )
+        return {"fx": fx, "fy": fy}

@@ -1,0 +1,111 @@
+"""Delayed-feedback controller unit: the disc state in, the Pyragas force out.
+
+The unit keeps the fed-back signal's history as samples taken at the
+communication points (its hidden state) and evaluates ``z(t - tau(t))`` by
+cubic Lagrange interpolation through the four samples around it; before the
+first sample the history is the first sample (constant initial function).
+The force depends on the current input directly (feedthrough).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from .controller import CONTROLLER_PARAMS, base_delay, delay_at, feedback_force
+from .parameters import nonnegative
+from .unit import Unit, real_signal
+
+SPEED = nonnegative(
+    "speed",
+    None,
+    "rad/s",
+    "rotor spin speed; sets the delay when it is given in periods (0 if delay is given)",
+    example=379.473319,
+)
+
+
+def lagrange_cubic(ts: np.ndarray, zs: np.ndarray, tq: float) -> np.ndarray:
+    """Interpolate rows ``zs`` given at times ``ts`` (up to 4) at ``tq``."""
+    out = np.zeros(zs.shape[1])
+    for i in range(ts.size):
+        w = 1.0
+        for j in range(ts.size):
+            if j != i:
+                w *= (tq - ts[j]) / (ts[i] - ts[j])
+        out += w * zs[i]
+    return out
+
+
+class DelayedFeedbackUnit(Unit):
+    """Pyragas controller ``u = K (z(t - tau) - z(t))`` on both axes."""
+
+    role = "controller"
+    type_name = "delayed_feedback"
+    summary = "delayed-feedback (Pyragas) controller, fixed or modulated delay"
+    params_spec = (*CONTROLLER_PARAMS, SPEED)
+    inputs = (
+        real_signal("x", "m", "disc displacement along x"),
+        real_signal("y", "m", "disc displacement along y"),
+        real_signal("vx", "m/s", "disc velocity along x"),
+        real_signal("vy", "m/s", "disc velocity along y"),
+    )
+    outputs = (
+        real_signal("fx", "N", "control force on the disc along x"),
+        real_signal("fy", "N", "control force on the disc along y"),
+        real_signal("current_delay", "s", "current delay tau(t)"),
+    )
+
+    def _check(self, params: dict[str, Any]) -> None:
+        self.tau0 = base_delay(params, params["speed"], self.name, f"{self.name}.speed")
+
+    def _initial_state(self) -> dict[str, Any]:
+        # rows (t, zx, zy); empty until the first step records a sample
+        return {"history": np.zeros((0, 3))}
+
+    def _signal(self) -> tuple[float, float]:
+        if self.params["feedback"] == "position":
+            return self.u["x"], self.u["y"]
+        return self.u["vx"], self.u["vy"]
+
+    def _delay(self, t: float) -> float:
+        q = self.params
+        return delay_at(t, self.tau0, q["modulation_amplitude"], q["modulation_frequency"])
+
+    def _advance(self, t: float, h: float) -> None:
+        hist = self.state["history"]
+        zx, zy = self._signal()
+        if hist.shape[0] and hist[-1, 0] >= t:
+            # a step repeated from the same time (the master restored us): keep the newest sample
+            hist = hist[hist[:, 0] < t]
+        keep = t + h - self.tau0 - self.params["modulation_amplitude"]
+        # keep three samples before the oldest time still needed, for the stencil
+        first = max(int(np.searchsorted(hist[:, 0], keep)) - 3, 0)
+        self.state["history"] = np.vstack((hist[first:], [[t, zx, zy]]))
+
+    def _delayed(self, tq: float) -> tuple[float, float]:
+        hist = self.state["history"]
+        zx, zy = self._signal()
+        samples = np.vstack((hist[hist[:, 0] < self.time], [[self.time, zx, zy]]))
+        if tq <= samples[0, 0]:
+            return samples[0, 1], samples[0, 2]
+        i = int(np.searchsorted(samples[:, 0], tq))  # samples[i-1, 0] < tq <= samples[i, 0]
+        lo = max(min(i - 2, samples.shape[0] - 4), 0)
+        window = samples[lo : lo + 4]
+        z = lagrange_cubic(window[:, 0], window[:, 1:], tq)
+        return z[0], z[1]
+
+    def _outputs(self) -> dict[str, float]:
+        t = self.time
+        tau = self._delay(t)
+        if t < self.params["t_on"]:
+            return {"fx": 0.0, "fy": 0.0, "current_delay": tau}
+        zx, zy = self._signal()
+        dx, dy = self._delayed(t - tau)
+        gain = self.params["gain"]
+        return {
+            "fx": feedback_force(gain, zx, dx),
+            "fy": feedback_force(gain, zy, dy),
+            "current_delay": tau,
+        }

@@ -1,0 +1,153 @@
+"""Rotor units: the Jeffcott disc and the journal + disc two-mass rotor.
+
+Inputs are forces from the other units (stator contact, controller, bearing),
+held constant over a step.  A rigid stator cannot act through a force: it
+resets the disc velocity.  The reset protocol: the master writes the
+post-impact velocity to ``reset_vx``/``reset_vy`` and changes the integer
+``reset_counter``; at the start of its next step the rotor replaces its disc
+velocity by the reset values and reports the counter it has applied in
+``resets_applied``.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from .rotor import JEFFCOTT_PARAMS, TWO_MASS_PARAMS, jeffcott_force, shaft_force
+from .stepping import integrate
+from .unit import INTEGRATOR_PARAMS, Unit, integer_signal, real_signal
+
+_DISC_INPUTS = (
+    real_signal("fx", "N", "external force on the disc along x (contact + control)"),
+    real_signal("fy", "N", "external force on the disc along y (contact + control)"),
+    real_signal("reset_vx", "m/s", "disc velocity along x to apply at the next reset"),
+    real_signal("reset_vy", "m/s", "disc velocity along y to apply at the next reset"),
+    integer_signal("reset_counter", "change it to request a disc velocity reset"),
+)
+
+_DISC_OUTPUTS = (
+    real_signal("x", "m", "disc displacement along x"),
+    real_signal("y", "m", "disc displacement along y"),
+    real_signal("vx", "m/s", "disc velocity along x"),
+    real_signal("vy", "m/s", "disc velocity along y"),
+    integer_signal("resets_applied", "reset_counter value of the last applied reset"),
+)
+
+
+RESET_PROTOCOL = (
+    "Velocity reset protocol: write the new disc velocity to reset_vx, reset_vy and change "
+    "reset_counter; the reset is applied at the start of the next fmi2DoStep and "
+    "resets_applied then equals reset_counter"
+)
+
+
+class _Rotor(Unit):
+    role = "rotor"
+    protocol = RESET_PROTOCOL
+    n_state = 4
+
+    def _initial_y(self) -> list[float]:
+        q = self.params
+        return [q["x0"], q["y0"], q["vx0"], q["vy0"]]
+
+    def _initial_state(self) -> dict[str, Any]:
+        return {"y": np.array(self._initial_y(), dtype=float), "h": 0.0, "resets_applied": 0}
+
+    def _apply_reset(self) -> None:
+        counter = int(self.u["reset_counter"])
+        if counter != self.state["resets_applied"]:
+            self.state["y"][2] = self.u["reset_vx"]
+            self.state["y"][3] = self.u["reset_vy"]
+            self.state["resets_applied"] = counter
+
+    def _advance(self, t: float, h: float) -> None:
+        self._apply_reset()
+        q = self.params
+        seg = integrate(self._rhs, t, t + h, self.state["y"], q["rtol"], q["atol"], self.state["h"])
+        self.state["y"] = seg.y
+        self.state["h"] = seg.h_next
+
+    def _rhs(self, t: float, y: np.ndarray) -> np.ndarray:
+        raise NotImplementedError
+
+    def _outputs(self) -> dict[str, float]:
+        y = self.state["y"]
+        out = {"x": y[0], "y": y[1], "vx": y[2], "vy": y[3]}
+        out["resets_applied"] = self.state["resets_applied"]
+        return out
+
+
+class JeffcottRotorUnit(_Rotor):
+    """Jeffcott rotor: one unbalanced disc on a massless elastic shaft."""
+
+    type_name = "jeffcott"
+    summary = "Jeffcott rotor (single disc) with unbalance; velocity reset input for rigid impacts"
+    params_spec = (*JEFFCOTT_PARAMS, *INTEGRATOR_PARAMS)
+    inputs = _DISC_INPUTS
+    outputs = _DISC_OUTPUTS
+
+    def _rhs(self, t: float, y: np.ndarray) -> np.ndarray:
+        q = self.params
+        fx, fy = jeffcott_force(
+            t, y[0], y[1], y[2], y[3], q["mass"], q["damping"], q["stiffness"],
+            q["eccentricity"], q["speed"], q["gravity"],
+        )  # fmt: skip
+        m = q["mass"]
+        return np.array([y[2], y[3], (fx + self.u["fx"]) / m, (fy + self.u["fy"]) / m])
+
+
+class TwoMassRotorUnit(_Rotor):
+    """Two-mass rotor: a journal in the bearing and an unbalanced disc, joined by the shaft."""
+
+    type_name = "two_mass"
+    summary = "two-mass rotor (journal + disc); bearing force input on the journal"
+    params_spec = (*TWO_MASS_PARAMS, *INTEGRATOR_PARAMS)
+    inputs = (
+        *_DISC_INPUTS,
+        real_signal("journal_fx", "N", "bearing force on the journal along x"),
+        real_signal("journal_fy", "N", "bearing force on the journal along y"),
+    )
+    outputs = (
+        *_DISC_OUTPUTS,
+        real_signal("journal_x", "m", "journal displacement along x"),
+        real_signal("journal_y", "m", "journal displacement along y"),
+        real_signal("journal_vx", "m/s", "journal velocity along x"),
+        real_signal("journal_vy", "m/s", "journal velocity along y"),
+    )
+
+    def _initial_y(self) -> list[float]:
+        q = self.params
+        journal = [q["journal_x0"], q["journal_y0"], q["journal_vx0"], q["journal_vy0"]]
+        return [*super()._initial_y(), *journal]
+
+    def _rhs(self, t: float, y: np.ndarray) -> np.ndarray:
+        q = self.params
+        m, mj, g = q["mass"], q["journal_mass"], q["gravity"]
+        # The disc's own forces without the shaft (stiffness 0), then the shaft to the journal.
+        fx, fy = jeffcott_force(
+            t, y[0], y[1], y[2], y[3], m, q["damping"], 0.0, q["eccentricity"], q["speed"], g
+        )
+        sx, sy = shaft_force(
+            y[0], y[1], y[2], y[3], y[4], y[5], y[6], y[7], q["stiffness"], q["shaft_damping"]
+        )
+        cj = q["journal_damping"]
+        return np.array(
+            [
+                y[2],
+                y[3],
+                (fx + sx + self.u["fx"]) / m,
+                (fy + sy + self.u["fy"]) / m,
+                y[6],
+                y[7],
+                (-sx + self.u["journal_fx"] - cj * y[6]) / mj,
+                (-sy + self.u["journal_fy"] - cj * y[7]) / mj - g,
+            ]
+        )
+
+    def _outputs(self) -> dict[str, float]:
+        out = super()._outputs()
+        y = self.state["y"]
+        out.update(journal_x=y[4], journal_y=y[5], journal_vx=y[6], journal_vy=y[7])
+        return out

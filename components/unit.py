@@ -1,0 +1,215 @@
+"""One co-simulation unit: declared signals, a step, and a state that can be saved.
+
+A :class:`Unit` is the in-process form of a subsystem.  The FMU wrappers in
+``rubcosim.fmus`` expose exactly these declarations as FMI variables, and the
+orchestrator's ``direct`` backend steps the same objects without FMI, so the
+two backends cannot drift apart.
+
+Contract of every unit:
+
+* parameters are declared once (:mod:`.parameters`) and validated when the
+  unit is built; a bad value raises :class:`ParameterError` naming
+  ``unit.parameter``;
+* inputs are held constant over a step (zero-order hold, as in FMI 2.0
+  co-simulation without input derivatives);
+* :meth:`Unit.do_step` either completes the step or raises :class:`StepError`
+  with the unit's state left exactly as it was before the call;
+* :meth:`Unit.get_state` captures everything the next step depends on
+  (continuous state, inputs, integrator step size, counters, history
+  buffers), so restoring a snapshot and stepping again is bit-identical.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any, ClassVar
+
+import numpy as np
+
+from .parameters import Param, ParameterError, real, resolve
+
+
+class StepError(RuntimeError):
+    """A step could not be completed; the unit's state is what it was before the step."""
+
+
+@dataclass(frozen=True)
+class Signal:
+    """An input or output of a unit: name, unit of measure, meaning, type and start value."""
+
+    name: str
+    unit: str
+    description: str
+    kind: str = "real"  # "real" or "integer"
+    start: float = 0.0
+
+
+def real_signal(name: str, unit: str, description: str, start: float = 0.0) -> Signal:
+    return Signal(name, unit, description, "real", start)
+
+
+def integer_signal(name: str, description: str, start: int = 0) -> Signal:
+    return Signal(name, "", description, "integer", start)
+
+
+INTEGRATOR_PARAMS = (
+    real("rtol", 1e-10, "1", "relative tolerance of the unit's internal integrator", 1e-14, 1e-2),
+    real("atol", 1e-14, "1", "absolute tolerance of the internal integrator (state units)", 0.0),
+)
+
+
+class Unit:
+    """Base class: subclasses declare ``role``, ``type_name``, ``params_spec``,
+    ``inputs``, ``outputs`` and implement ``_initial_state``, ``_advance`` and
+    ``_outputs``.
+
+    All mutable state lives in ``self.state`` (a dict of floats, ints and
+    numpy arrays) and ``self.u`` (input values), which is what a snapshot
+    copies.
+    """
+
+    role: ClassVar[str]
+    type_name: ClassVar[str]
+    summary: ClassVar[str]
+    protocol: ClassVar[str] = ""  # how a master drives its events, for FMU descriptions
+    params_spec: ClassVar[tuple[Param, ...]]
+    inputs: ClassVar[tuple[Signal, ...]]
+    outputs: ClassVar[tuple[Signal, ...]]
+
+    def __init__(self, name: str | None = None, **params: Any) -> None:
+        self.name = name or self.role
+        self.params = resolve(self.name, self.params_spec, params)
+        self._check(self.params)
+        self.u: dict[str, float] = {s.name: s.start for s in self.inputs}
+        self.time = 0.0
+        self.state: dict[str, Any] = self._initial_state()
+
+    @classmethod
+    def example_params(cls) -> dict[str, Any]:
+        """Every parameter at its default, or at its example value where it is required."""
+        return {p.name: p.default if p.default is not None else p.example for p in cls.params_spec}
+
+    @classmethod
+    def example(cls, name: str | None = None, **overrides: Any) -> Unit:
+        """A unit built from :meth:`example_params` with ``overrides``."""
+        return cls(name=name, **{**cls.example_params(), **overrides})
+
+    # --- to implement -------------------------------------------------------
+    def _check(self, params: Mapping[str, Any]) -> None:
+        """Cross-parameter checks beyond each parameter's own range."""
+
+    def _initial_state(self) -> dict[str, Any]:
+        raise NotImplementedError
+
+    def _advance(self, t: float, h: float) -> None:
+        raise NotImplementedError
+
+    def _outputs(self) -> dict[str, float]:
+        raise NotImplementedError
+
+    # --- public API -----------------------------------------------------------
+    def reset(self, start_time: float = 0.0) -> None:
+        """Back to the initial state at ``start_time``; inputs back to their start values."""
+        self.u = {s.name: s.start for s in self.inputs}
+        self.time = float(start_time)
+        self.state = self._initial_state()
+
+    def set_input(self, name: str, value: float) -> None:
+        """Set one input; an unknown name is an error naming the unit."""
+        if name not in self.u:
+            known = ", ".join(self.u)
+            raise KeyError(f"{self.name}.{name} is not an input (inputs: {known})")
+        self.u[name] = value
+
+    def set_inputs(self, values: Mapping[str, float]) -> None:
+        for name, value in values.items():
+            self.set_input(name, value)
+
+    def get_outputs(self) -> dict[str, float]:
+        """Output values at the current time for the current inputs."""
+        return self._outputs()
+
+    def do_step(self, t: float, h: float) -> None:
+        """Advance from ``t`` to ``t + h``; on failure restore the state and raise StepError."""
+        if not (math.isfinite(t) and math.isfinite(h)) or h < 0.0:
+            raise StepError(f"{self.name}: invalid step t = {t!r}, h = {h!r}")
+        for name, value in self.u.items():
+            if not math.isfinite(value):
+                raise StepError(f"{self.name}: input {name} = {value!r} is not finite at t = {t}")
+        saved = self.get_state()
+        try:
+            self.time = t
+            self._advance(t, h)
+            bad = [k for k, v in self.state.items() if not np.all(np.isfinite(v))]
+            if bad:
+                raise StepError(f"{self.name}: state {bad[0]} is not finite after the step")
+        except Exception as exc:
+            self.set_state(saved)
+            if isinstance(exc, StepError):
+                raise
+            raise StepError(
+                f"{self.name}: step from t = {t} to {t + h} failed: {type(exc).__name__}: {exc}"
+            ) from exc
+        self.time = t + h
+
+    def get_state(self) -> dict[str, Any]:
+        """A deep copy of everything the unit's future depends on."""
+        return {
+            "time": self.time,
+            "u": dict(self.u),
+            "state": {
+                k: (v.copy() if isinstance(v, np.ndarray) else v) for k, v in self.state.items()
+            },
+        }
+
+    def set_state(self, snapshot: Mapping[str, Any]) -> None:
+        """Restore a snapshot from :meth:`get_state` (it stays usable for further restores)."""
+        try:
+            self.time = float(snapshot["time"])
+            self.u = dict(snapshot["u"])
+            self.state = {
+                k: (np.array(v, dtype=float) if isinstance(v, np.ndarray | list) else v)
+                for k, v in snapshot["state"].items()
+            }
+        except (KeyError, TypeError) as exc:
+            raise ValueError(f"{self.name}: not a state snapshot of this unit ({exc})") from exc
+
+    @staticmethod
+    def state_to_bytes(snapshot: Mapping[str, Any]) -> bytes:
+        """Serialise a snapshot; floats keep every bit (shortest round-trip repr)."""
+
+        def encode(value: Any) -> Any:
+            if isinstance(value, np.ndarray):
+                return {"__array__": value.tolist()}
+            if isinstance(value, dict):
+                return {k: encode(v) for k, v in value.items()}
+            if isinstance(value, np.floating | np.integer):
+                return value.item()
+            return value
+
+        return json.dumps(encode(dict(snapshot)), allow_nan=True).encode("utf-8")
+
+    @staticmethod
+    def state_from_bytes(data: bytes) -> dict[str, Any]:
+        def decode(value: Any) -> Any:
+            if isinstance(value, dict):
+                if set(value) == {"__array__"}:
+                    return np.array(value["__array__"], dtype=float)
+                return {k: decode(v) for k, v in value.items()}
+            return value
+
+        try:
+            return decode(json.loads(data.decode("utf-8")))
+        except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+            raise ValueError(f"not a serialised unit state: {exc}") from exc
+
+
+def check_finite_params(unit: str, params: Mapping[str, Any]) -> None:
+    """Raise ParameterError for a non-finite real (resolve() already refuses them; kept
+    for values derived from several parameters)."""
+    for name, value in params.items():
+        if isinstance(value, float) and not math.isfinite(value):
+            raise ParameterError(f"{unit}.{name} = {value!r} is not finite")

@@ -1,0 +1,205 @@
+"""An FMI 2.0 co-simulation FMU behind the same small interface as a rubcosim Unit.
+
+Loaded with fmpy; works for the FMUs built here and for any other FMI 2.0
+co-simulation FMU.  Names, not value references, are used everywhere;
+failures raise with the messages the FMU logged.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import shutil
+import threading
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+from fmpy import extract, read_model_description
+from fmpy.fmi2 import (
+    FMU2Slave,
+    calloc,
+    fmi2CallbackAllocateMemoryTYPE,
+    fmi2CallbackFreeMemoryTYPE,
+    fmi2CallbackFunctions,
+    fmi2CallbackLoggerTYPE,
+    free,
+)
+
+from rubcosim.components.unit import StepError
+
+FMI2_FATAL = 4
+
+
+class FmuError(RuntimeError):
+    """An FMU could not be loaded, initialised or called; the message names it."""
+
+
+class FmuUnit:
+    """One instance of an FMU.
+
+    ``params`` and ``inputs`` (by variable name) are set before initialisation;
+    ``start_time`` is passed to fmi2SetupExperiment.
+    """
+
+    def __init__(
+        self,
+        path: str | Path,
+        name: str | None = None,
+        params: Mapping[str, Any] | None = None,
+        start_time: float = 0.0,
+    ) -> None:
+        self.path = Path(path)
+        if not self.path.is_file():
+            raise FmuError(f"FMU not found: {self.path}")
+        try:
+            self.md = read_model_description(str(self.path), validate=False)
+        except Exception as exc:
+            raise FmuError(f"{self.path} is not a readable FMU: {exc}") from exc
+        if self.md.coSimulation is None:
+            raise FmuError(f"{self.path} has no co-simulation interface")
+        self.name = name or self.md.modelName
+        self.variables = {v.name: v for v in self.md.modelVariables}
+        self.inputs = [v.name for v in self.md.modelVariables if v.causality == "input"]
+        self.outputs = [v.name for v in self.md.modelVariables if v.causality == "output"]
+        self.messages: list[str] = []
+        self._lock = threading.Lock()
+        self._dir = extract(str(self.path))
+        self._callbacks = self._make_callbacks()
+        self._fmu = FMU2Slave(
+            guid=self.md.guid,
+            unzipDirectory=self._dir,
+            modelIdentifier=self.md.coSimulation.modelIdentifier,
+            instanceName=self.name,
+        )
+        self._instantiated = False
+        self._fatal = False
+        try:
+            self._call(
+                "fmi2Instantiate", self._fmu.instantiate, callbacks=self._callbacks, loggingOn=True
+            )
+            self._instantiated = True
+            self._call("set parameters", self.set_values, dict(params or {}))
+            self._call("fmi2SetupExperiment", self._fmu.setupExperiment, startTime=start_time)
+            self._call("fmi2EnterInitializationMode", self._fmu.enterInitializationMode)
+            self._call("fmi2ExitInitializationMode", self._fmu.exitInitializationMode)
+        except Exception:
+            self.close()
+            raise
+        self.time = float(start_time)
+
+    # --- values ------------------------------------------------------------------
+    def _variable(self, name: str) -> Any:
+        try:
+            return self.variables[name]
+        except KeyError:
+            raise FmuError(f"{self.name}.{name} is not a variable of {self.path.name}") from None
+
+    def set_values(self, values: Mapping[str, Any]) -> None:
+        for name, value in values.items():
+            var = self._variable(name)
+            vr = [var.valueReference]
+            if var.type == "Real":
+                self._fmu.setReal(vr, [float(value)])
+            elif var.type in ("Integer", "Enumeration"):
+                self._fmu.setInteger(vr, [int(value)])
+            elif var.type == "Boolean":
+                self._fmu.setBoolean(vr, [bool(value)])
+            else:
+                self._fmu.setString(vr, [str(value)])
+
+    def get_values(self, names: list[str]) -> dict[str, Any]:
+        out: dict[str, Any] = {}
+        for name in names:
+            var = self._variable(name)
+            vr = [var.valueReference]
+            if var.type == "Real":
+                out[name] = self._fmu.getReal(vr)[0]
+            elif var.type in ("Integer", "Enumeration"):
+                out[name] = self._fmu.getInteger(vr)[0]
+            elif var.type == "Boolean":
+                out[name] = self._fmu.getBoolean(vr)[0]
+            else:
+                out[name] = self._fmu.getString(vr)[0]
+        return out
+
+    def set_input(self, name: str, value: float) -> None:
+        self._call(f"set {name}", self.set_values, {name: value})
+
+    def set_inputs(self, values: Mapping[str, float]) -> None:
+        self._call("set inputs", self.set_values, values)
+
+    def get_outputs(self) -> dict[str, Any]:
+        return self._call("get outputs", self.get_values, self.outputs)
+
+    # --- stepping and state --------------------------------------------------------
+    def do_step(self, t: float, h: float) -> None:
+        """fmi2DoStep; a discarded or failed step raises StepError with the FMU's messages."""
+        self.messages.clear()
+        try:
+            self._fmu.doStep(currentCommunicationPoint=t, communicationStepSize=h)
+        except Exception as exc:
+            if getattr(exc, "status", None) == FMI2_FATAL:
+                self._fatal = True
+            detail = "; ".join(self.messages) or str(exc)
+            raise StepError(f"{self.name}: step from t = {t} to {t + h} failed: {detail}") from exc
+        self.time = t + h
+
+    def get_state(self) -> Any:
+        """An FMU state handle (free it with :meth:`free_state` when done)."""
+        return self._call("fmi2GetFMUstate", self._fmu.getFMUState)
+
+    def set_state(self, state: Any) -> None:
+        self._call("fmi2SetFMUstate", self._fmu.setFMUState, state)
+
+    def free_state(self, state: Any) -> None:
+        self._call("fmi2FreeFMUstate", self._fmu.freeFMUState, state)
+
+    def serialize_state(self, state: Any) -> bytes:
+        return bytes(self._call("fmi2SerializeFMUstate", self._fmu.serializeFMUState, state))
+
+    def deserialize_state(self, data: bytes) -> Any:
+        return self._call("fmi2DeSerializeFMUstate", self._fmu.deserializeFMUState, data)
+
+    def close(self) -> None:
+        """Terminate and free the instance; remove the extracted files.
+
+        After an ``fmi2Fatal`` the standard allows no further call to the instance (and
+        pythonfmu 0.7 would release its Python objects a second time): it is dropped.
+        """
+        if self._instantiated and not self._fatal:
+            with contextlib.suppress(Exception):  # freeing must go on after a failed terminate
+                self._fmu.terminate()
+            self._fmu.freeInstance()
+        self._instantiated = False
+        shutil.rmtree(self._dir, ignore_errors=True)
+
+    def __enter__(self) -> FmuUnit:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    # --- plumbing ---------------------------------------------------------------------
+    def _call(self, what: str, function: Any, *args: Any, **kwargs: Any) -> Any:
+        self.messages.clear()
+        try:
+            return function(*args, **kwargs)
+        except FmuError:
+            raise
+        except Exception as exc:
+            if getattr(exc, "status", None) == FMI2_FATAL:
+                self._fatal = True
+            detail = "; ".join(self.messages) or str(exc)
+            raise FmuError(f"{self.name}: {what} failed: {detail}") from exc
+
+    def _make_callbacks(self) -> fmi2CallbackFunctions:
+        def log(env: Any, instance: bytes, status: int, category: bytes, message: bytes) -> None:
+            text = message.decode("utf-8", "replace") if message else ""
+            with self._lock:
+                self.messages.append(text)
+
+        callbacks = fmi2CallbackFunctions()
+        callbacks.logger = fmi2CallbackLoggerTYPE(log)
+        callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
+        callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
+        return callbacks

@@ -1,0 +1,296 @@
+"""The FMUs: built, valid, rollback-safe, robust, and equal to the units they wrap."""
+
+from __future__ import annotations
+
+import json
+import math
+import re
+import subprocess
+import sys
+import xml.etree.ElementTree as ET
+import zipfile
+
+import numpy as np
+import pytest
+from fmpy.validation import validate_fmu
+
+from rubcosim.cli import main
+from rubcosim.components.rotor import free_whirl
+from rubcosim.components.unit import StepError
+from rubcosim.components.units import UNIT_CLASSES
+from rubcosim.fmus.build import MODEL_IDENTIFIERS, BuildRequestError, build_fmus, fmu_specs
+from rubcosim.orchestrator.fmu_unit import FmuError, FmuUnit
+
+from test_units import STIMULI, stimulus
+
+IDENTIFIERS = sorted(MODEL_IDENTIFIERS.values())
+KEY_OF = {ident: key for key, ident in MODEL_IDENTIFIERS.items()}
+PYTHON = sys.executable
+
+
+def fmu_run(unit: FmuUnit, inputs, t0: float, n: int, h: float) -> list[dict]:
+    out = []
+    t = t0
+    for _ in range(n):
+        unit.set_inputs(inputs(t))
+        unit.do_step(t, h)
+        t += h
+        unit.set_inputs(inputs(t))
+        out.append(unit.get_outputs())
+    return out
+
+
+def step_of(ident: str) -> float:
+    return 0.05 if KEY_OF[ident][0] == "oscillator" else 1e-4
+
+
+def stimulus_params(ident: str) -> dict:
+    return STIMULI[KEY_OF[ident]][0]
+
+
+def test_every_unit_has_an_fmu(built_fmus):
+    assert set(MODEL_IDENTIFIERS) == set(UNIT_CLASSES)
+    assert sorted(built_fmus) == IDENTIFIERS
+    assert [s.identifier for s in fmu_specs()] == [MODEL_IDENTIFIERS[k] for k in UNIT_CLASSES]
+
+
+@pytest.mark.parametrize("ident", IDENTIFIERS)
+def test_fmu_validates_and_describes_every_variable(built_fmus, ident):
+    path = built_fmus[ident]
+    assert validate_fmu(str(path)) == []
+    with zipfile.ZipFile(path) as z:
+        root = ET.fromstring(z.read("modelDescription.xml"))
+        names = z.namelist()
+        sources = [z.read(n).decode() for n in names if n.endswith(".py")]
+    units = {u.get("name") for u in root.iter("Unit")}
+    cls = UNIT_CLASSES[KEY_OF[ident]]
+    declared = {p.name: p for p in cls.params_spec}
+    signals = {s.name: s for s in (*cls.inputs, *cls.outputs)}
+    for sv in root.iter("ScalarVariable"):
+        name, causality = sv.get("name"), sv.get("causality")
+        assert sv.get("description"), name
+        if causality == "parameter":
+            assert sv.get("variability") == "fixed"
+            expected_unit = declared[name].unit
+        else:
+            sig = signals[name]
+            expected_unit = sig.unit
+            want = "discrete" if sig.kind == "integer" else "continuous"
+            assert sv.get("variability") == want, name
+            if causality == "output":
+                assert sv.get("initial") == "exact"
+        real = sv.find("Real")
+        if real is not None and expected_unit:
+            assert real.get("unit") == expected_unit and expected_unit in units, name
+    cs = root.find("CoSimulation")
+    assert cs.get("canGetAndSetFMUstate") == "true" and cs.get("canSerializeFMUstate") == "true"
+    assert root.get("description", "").startswith(cls.summary)
+    if cls.protocol:
+        assert "reset_counter" in root.get("description")
+    # the FMU carries its own code: nothing in it imports the rubcosim package
+    assert not any(re.search(r"^\s*(from|import) rubcosim[\s.]", s, re.M) for s in sources)
+    assert f"binaries/linux64/{ident}.so" in names
+    assert f"binaries/linux64/{ident}_pythonfmu_export.so" in names
+
+
+def test_builds_are_reproducible(tmp_path):
+    a = build_fmus(tmp_path / "a", only=["RubcosimLinearBearing"])[0]
+    b = build_fmus(tmp_path / "b", only=["RubcosimLinearBearing"])[0]
+    assert a.read_bytes() == b.read_bytes()
+
+
+@pytest.mark.parametrize("ident", IDENTIFIERS)
+def test_fmu_state_restore_and_serialisation_are_bit_identical(built_fmus, ident):
+    _, inputs = stimulus(KEY_OF[ident])
+    h = step_of(ident)
+    with FmuUnit(built_fmus[ident], params=stimulus_params(ident)) as fmu:
+        fmu_run(fmu, inputs, 0.0, 5, h)
+        state = fmu.get_state()
+        first = fmu_run(fmu, inputs, 5 * h, 5, h)
+        fmu.set_state(state)
+        again = fmu_run(fmu, inputs, 5 * h, 5, h)
+        fmu.set_state(state)  # the same snapshot twice
+        third = fmu_run(fmu, inputs, 5 * h, 5, h)
+        data = fmu.serialize_state(state)
+        fmu.free_state(state)
+        restored = fmu.deserialize_state(data)
+        fmu.set_state(restored)
+        fourth = fmu_run(fmu, inputs, 5 * h, 5, h)
+        fmu.free_state(restored)
+    assert first == again == third == fourth
+    assert any(v != 0 for o in first for v in o.values())
+
+
+@pytest.mark.parametrize("ident", IDENTIFIERS)
+def test_fmu_matches_the_unit_it_wraps(built_fmus, ident):
+    key = KEY_OF[ident]
+    params, inputs = stimulus(key)
+    h = step_of(ident)
+    unit = UNIT_CLASSES[key](**params)
+    with FmuUnit(built_fmus[ident], params=stimulus_params(ident)) as fmu:
+        got = fmu_run(fmu, inputs, 0.0, 10, h)
+    t = 0.0
+    want = []
+    for _ in range(10):
+        unit.set_inputs(inputs(t))
+        unit.do_step(t, h)
+        t += h
+        unit.set_inputs(inputs(t))
+        want.append(unit.get_outputs())
+    # the same code; the FMU runs the kernels as plain Python, the unit compiled by numba,
+    # so the last bit may differ
+    for g, w in zip(got, want, strict=True):
+        assert g == pytest.approx(w, rel=1e-12, abs=1e-300)
+
+
+@pytest.mark.parametrize("ident", IDENTIFIERS)
+def test_invalid_parameter_is_refused_at_initialisation(built_fmus, ident):
+    cls = UNIT_CLASSES[KEY_OF[ident]]
+    p = next(p for p in cls.params_spec if p.kind == "real" and math.isfinite(p.low))
+    bad = p.low - 1.0
+    with pytest.raises(FmuError, match=rf"{cls.role}\.{p.name}"):
+        FmuUnit(built_fmus[ident], params={p.name: bad})
+
+
+@pytest.mark.parametrize("ident", IDENTIFIERS)
+def test_a_failing_step_is_reported_and_leaves_the_state(built_fmus, ident):
+    _, inputs = stimulus(KEY_OF[ident])
+    h = step_of(ident)
+    cls = UNIT_CLASSES[KEY_OF[ident]]
+    name = next(s.name for s in cls.inputs if s.kind == "real")
+    with FmuUnit(built_fmus[ident], params=stimulus_params(ident)) as fmu:
+        fmu_run(fmu, inputs, 0.0, 3, h)
+        before = fmu.serialize_state(fmu.get_state())
+        fmu.set_input(name, math.nan)
+        with pytest.raises(StepError, match=rf"input {name} = nan is not finite"):
+            fmu.do_step(3 * h, h)
+        fmu.set_inputs(inputs(3 * h))
+        after = fmu.serialize_state(fmu.get_state())
+        strip = [json.loads(x) for x in (before, after)]
+        for s in strip:
+            s.pop("u")
+        assert strip[0] == strip[1]
+        fmu.do_step(3 * h, h)  # it goes on from where it was
+
+
+def test_every_fmu_loads_together_in_one_process(built_fmus):
+    units = [FmuUnit(path, name=f"u{i}") for i, path in enumerate(built_fmus.values())]
+    units.append(FmuUnit(built_fmus["RubcosimJeffcottRotor"], name="second_rotor"))
+    try:
+        for u in units:
+            u.do_step(0.0, 1e-4)
+            assert all(np.isfinite(v) for v in u.get_outputs().values())
+    finally:
+        for u in units:
+            u.close()
+    # and again after all were freed
+    with FmuUnit(built_fmus["RubcosimJeffcottRotor"]) as again:
+        again.do_step(0.0, 1e-4)
+
+
+def test_missing_or_broken_fmu_is_a_clear_error(tmp_path):
+    with pytest.raises(FmuError, match="FMU not found"):
+        FmuUnit(tmp_path / "nope.fmu")
+    junk = tmp_path / "junk.fmu"
+    junk.write_bytes(b"not a zip")
+    with pytest.raises(FmuError, match="not a readable FMU"):
+        FmuUnit(junk)
+
+
+FRESH = r"""
+import json, sys
+import fmpy
+ident, path, stop, step = sys.argv[1], sys.argv[2], float(sys.argv[3]), float(sys.argv[4])
+start = json.loads(sys.argv[5])
+if len(sys.argv) > 6 and sys.argv[6] == "no-numba":
+    sys.modules["numba"] = None  # as on a machine without numba
+res = fmpy.simulate_fmu(path, stop_time=stop, output_interval=step, start_values=start)
+names = [n for n in res.dtype.names if n != "time"]
+print(json.dumps({"rows": len(res), "last": [float(res[n][-1]) for n in names],
+                  "rubcosim_imported": any(m.startswith("rubcosim.") for m in sys.modules),
+                  "numba": "numba" in sys.modules and sys.modules["numba"] is not None}))
+"""
+
+
+@pytest.mark.parametrize("ident", IDENTIFIERS)
+def test_fmu_simulates_with_fmpy_in_a_fresh_process(built_fmus, ident, tmp_path):
+    h = step_of(ident)
+    proc = subprocess.run(
+        [PYTHON, "-c", FRESH, ident, str(built_fmus[ident]), repr(20 * h), repr(h),
+         json.dumps(stimulus_params(ident))],
+        capture_output=True, text=True, timeout=120, cwd=tmp_path, check=False,
+    )  # fmt: skip
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    out = json.loads(proc.stdout.strip().splitlines()[-1])
+    assert out["rows"] == 21 and all(math.isfinite(v) for v in out["last"])
+    assert not out["rubcosim_imported"]
+
+
+def test_fmu_runs_without_numba_and_with_it(built_fmus, tmp_path, monkeypatch):
+    path = str(built_fmus["RubcosimImpactOscillator"])
+    start = json.dumps(stimulus_params("RubcosimImpactOscillator"))
+    results = []
+    for env, extra in (
+        ({}, []),
+        ({"RUBCOSIM_NUMBA": "1"}, []),
+        ({"RUBCOSIM_NUMBA": "1"}, ["no-numba"]),
+    ):
+        proc = subprocess.run(
+            [PYTHON, "-c", FRESH, "osc", path, "2.0", "0.05", start, *extra],
+            capture_output=True, text=True, timeout=180, cwd=tmp_path, check=False,
+            env={**__import__("os").environ, **env},
+        )  # fmt: skip
+        assert proc.returncode == 0, proc.stderr[-2000:]
+        results.append(json.loads(proc.stdout.strip().splitlines()[-1]))
+    assert [r["numba"] for r in results] == [False, True, False]
+    assert results[0]["last"] == pytest.approx(results[1]["last"], rel=1e-12)
+    assert results[0]["last"] == results[2]["last"]
+
+
+def test_rotor_fmu_with_no_force_follows_the_free_whirl(built_fmus):
+    m, c, k, e, w = 10.0, 316.227766, 1e6, 5e-5, 379.473319
+    A, phase = free_whirl(m, c, k, e, w)
+    x0, y0 = A * math.cos(-phase), A * math.sin(-phase)
+    params = dict(mass=m, damping=c, stiffness=k, eccentricity=e, speed=w, x0=x0, y0=y0,
+                  vx0=-w * y0, vy0=w * x0)  # fmt: skip
+    h = 2 * math.pi / w / 32
+    worst = 0.0
+    with FmuUnit(built_fmus["RubcosimJeffcottRotor"], params=params) as fmu:
+        for i in range(160):
+            fmu.do_step(i * h, h)
+            t = (i + 1) * h
+            o = fmu.get_outputs()
+            worst = max(worst, math.hypot(o["x"] - A * math.cos(w * t - phase),
+                                          o["y"] - A * math.sin(w * t - phase)))  # fmt: skip
+    assert worst < 1e-8 * A
+
+
+def test_oscillator_fmu_matches_the_reference_engine(built_fmus):
+    from rubcosim.reference import build_system, make_unit, simulate
+
+    params = dict(linear_stiffness=1.0, damping=0.1, cubic_stiffness=1.0, forcing_amplitude=1.0,
+                  forcing_frequency=2.0, barrier=1.0, restitution=0.8, x0=-2.0)  # fmt: skip
+    h = math.pi / 16
+    times = h * np.arange(0, 161)
+    system = build_system({"oscillator": make_unit("oscillator", "impact_oscillator", params)})
+    ref = simulate(system, float(times[-1]), t_eval=times, engine="fast", rtol=1e-12, atol=1e-14)
+    xs = []
+    with FmuUnit(built_fmus["RubcosimImpactOscillator"], params=params) as fmu:
+        for i in range(160):
+            fmu.do_step(i * h, h)
+            xs.append(fmu.get_outputs()["x"])
+        assert fmu.get_outputs()["impacts"] == ref.counters["impacts"]
+    assert np.max(np.abs(np.array(xs) - ref.output("oscillator.x")[1:])) < 1e-7
+
+
+def test_build_fmus_command(tmp_path, capsys):
+    assert main(["build-fmus", "--out", str(tmp_path / "o"), "--only", "RubcosimRigidStator"]) == 0
+    assert (tmp_path / "o" / "RubcosimRigidStator.fmu").is_file()
+    assert capsys.readouterr().out.strip().endswith("RubcosimRigidStator.fmu")
+    assert main(["build-fmus", "--out", str(tmp_path / "p"), "--only", "Nope"]) == 2
+    assert "unknown FMU 'Nope'" in capsys.readouterr().err
+    (tmp_path / "file").write_text("x")
+    assert main(["build-fmus", "--out", str(tmp_path / "file")]) == 2
+    assert "not a directory" in capsys.readouterr().err
+    with pytest.raises(BuildRequestError):
+        build_fmus(tmp_path / "q", only=["Nope"])

@@ -1,0 +1,358 @@
+"""The co-simulation units stepped in-process (what the FMUs and the direct backend wrap)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from rubcosim.components import jit
+from rubcosim.components.bearing import oilfilm_force, oilfilm_sigma
+from rubcosim.components.controller import base_delay
+from rubcosim.components.controller_unit import lagrange_cubic
+from rubcosim.components.parameters import ParameterError
+from rubcosim.components.rotor import free_whirl
+from rubcosim.components.stator import penalty_contact_force, rigid_impact
+from rubcosim.components.stepping import event, integrate
+from rubcosim.components.unit import StepError, Unit
+from rubcosim.components.units import UNIT_CLASSES, make_unit, unit_class
+from rubcosim.reference import build_system, simulate
+from rubcosim.reference import make_unit as make_reference_unit
+
+W = 379.473319
+ROTOR = dict(mass=10.0, damping=316.227766, stiffness=1e6, eccentricity=5e-5, speed=W)
+
+# inputs that make every unit do something, as functions of time
+STIMULI = {
+    ("rotor", "jeffcott"): ({}, lambda t: {"fx": 50.0 * math.sin(900 * t), "fy": 1.0}),
+    ("rotor", "two_mass"): ({}, lambda t: {"fx": 5.0, "journal_fx": -20.0 * math.cos(500 * t)}),
+    ("stator", "rigid"): ({"friction": 0.2, "disc_radius": 0.05, "speed": W}, None),
+    ("stator", "elastic"): ({"friction": 0.1, "impact_mass": 10.0, "restitution": 0.7}, None),
+    ("stator", "casing"): ({"friction": 0.1, "impact_mass": 10.0, "restitution": 0.7}, None),
+    ("bearing", "oilfilm"): ({}, lambda t: {"x": 3e-5 * math.cos(700 * t), "vx": 0.01}),
+    ("bearing", "linear"): ({}, lambda t: {"x": 3e-5 * math.cos(700 * t), "vy": 0.01}),
+    ("controller", "delayed_feedback"): (
+        {"delay": 2e-3},
+        lambda t: {"x": 1e-5 * math.sin(1000 * t), "y": 1e-5 * math.cos(1300 * t)},
+    ),
+    ("oscillator", "impact_oscillator"): (
+        {"forcing_amplitude": 1.0, "barrier": 0.4, "damping": 0.1},
+        lambda t: {"force": 0.1 * math.sin(t)},
+    ),
+}
+
+
+def ex(role: str, type_name: str, **overrides) -> Unit:
+    """A unit at its example parameters with ``overrides``."""
+    return unit_class(role, type_name).example(**overrides)
+
+
+def _disc_near_stator(t: float) -> dict[str, float]:
+    # the disc sweeps through the clearance (1e-4 m) and back
+    r = 1e-4 * (1.0 + 0.05 * math.sin(2000 * t))
+    return {"x": r * math.cos(W * t), "y": r * math.sin(W * t), "vx": -W * r * math.sin(W * t)}
+
+
+def stimulus(key: tuple[str, str]):
+    """Example parameters with the stimulus overrides, and the input functions."""
+    params, inputs = STIMULI[key]
+    return {**unit_class(*key).example_params(), **params}, inputs or _disc_near_stator
+
+
+def step_size(unit: Unit) -> float:
+    return 0.05 if unit.role == "oscillator" else 1e-4
+
+
+def run(unit: Unit, inputs, t0: float, n: int, h: float) -> list[dict[str, float]]:
+    out = []
+    t = t0
+    for _ in range(n):
+        unit.set_inputs(inputs(t))
+        unit.do_step(t, h)
+        t += h
+        unit.set_inputs(inputs(t))
+        out.append(unit.get_outputs())
+    return out
+
+
+@pytest.mark.parametrize("key", sorted(UNIT_CLASSES))
+def test_unit_declares_what_it_computes(key):
+    params, _ = stimulus(key)
+    unit = make_unit(*key, **params)
+    assert set(unit.get_outputs()) == {s.name for s in unit.outputs}
+    assert set(unit.u) == {s.name for s in unit.inputs}
+    assert unit.summary and all(
+        s.description and s.kind in ("real", "integer") for s in unit.outputs
+    )
+    for p in unit.params_spec:
+        assert p.default is not None or p.example is not None, f"{key} {p.name} has no start value"
+
+
+@pytest.mark.parametrize("key", sorted(UNIT_CLASSES))
+def test_snapshot_restore_is_bit_identical(key):
+    params, inputs = stimulus(key)
+    unit = make_unit(*key, **params)
+    h = step_size(unit)
+    run(unit, inputs, 0.0, 5, h)
+    snap = unit.get_state()
+    first = run(unit, inputs, 5 * h, 5, h)
+    unit.set_state(snap)
+    again = run(unit, inputs, 5 * h, 5, h)
+    unit.set_state(snap)  # the same snapshot, a second time
+    third = run(unit, inputs, 5 * h, 5, h)
+    data = Unit.state_to_bytes(snap)
+    unit.set_state(Unit.state_from_bytes(data))
+    fourth = run(unit, inputs, 5 * h, 5, h)
+    assert first == again == third == fourth
+    assert any(v != 0 for o in first for v in o.values())
+
+
+@pytest.mark.parametrize("key", sorted(UNIT_CLASSES))
+def test_failed_step_leaves_the_state_untouched(key):
+    params, inputs = stimulus(key)
+    unit = make_unit(*key, **params)
+    h = step_size(unit)
+    run(unit, inputs, 0.0, 3, h)
+    before = Unit.state_to_bytes(unit.get_state())
+    name = next(s.name for s in unit.inputs if s.kind == "real")
+    unit.set_input(name, math.nan)
+    with pytest.raises(StepError, match=name):
+        unit.do_step(3 * h, h)
+    assert Unit.state_to_bytes(unit.get_state())[:] != b""
+    unit.set_inputs(inputs(3 * h))
+    after = unit.get_state()
+    after["u"] = Unit.state_from_bytes(before)["u"]
+    assert Unit.state_to_bytes(after) == before
+    unit.do_step(3 * h, h)  # and it goes on
+
+
+def test_bad_parameters_name_the_field():
+    with pytest.raises(ParameterError, match=r"rotor\.mass"):
+        make_unit("rotor", "jeffcott", mass=-1.0)
+    with pytest.raises(ParameterError, match=r"stator\.clearance is required"):
+        make_unit("stator", "rigid")
+    with pytest.raises(ParameterError, match=r"stator\.restitution"):
+        ex("stator", "rigid", restitution=1.5)
+    with pytest.raises(ParameterError, match=r"stator\.impact_mass"):
+        ex("stator", "elastic", restitution=0.5)
+    with pytest.raises(ParameterError, match=r"oscillator\.barrier"):
+        ex("oscillator", "impact_oscillator", stop="rigid_two_sided", barrier=-1.0)
+    with pytest.raises(ParameterError, match=r"controller\.speed"):
+        ex("controller", "delayed_feedback", speed=0.0)
+    with pytest.raises(ParameterError, match=r"rotor\.type"):
+        make_unit("rotor", "flexible")
+    with pytest.raises(ValueError, match="not a state snapshot"):
+        ex("rotor", "jeffcott").set_state({"time": 0.0})
+    with pytest.raises(ValueError, match="not a serialised"):
+        Unit.state_from_bytes(b"\xff")
+    with pytest.raises(KeyError, match=r"rotor\.force"):
+        ex("rotor", "jeffcott").set_input("force", 1.0)
+    with pytest.raises(StepError, match="invalid step"):
+        ex("rotor", "jeffcott").do_step(0.0, -1.0)
+
+
+def test_rotor_on_its_free_whirl_matches_the_closed_form():
+    A, phase = free_whirl(
+        **{k: ROTOR[k] for k in ("mass", "damping", "stiffness", "eccentricity", "speed")}
+    )
+    x0, y0 = A * math.cos(-phase), A * math.sin(-phase)
+    unit = make_unit("rotor", "jeffcott", **ROTOR, x0=x0, y0=y0, vx0=-W * y0, vy0=W * x0)
+    h = 2 * math.pi / W / 40
+    worst = 0.0
+    for i in range(200):
+        unit.do_step(i * h, h)
+        t = (i + 1) * h
+        o = unit.get_outputs()
+        worst = max(
+            worst,
+            math.hypot(o["x"] - A * math.cos(W * t - phase), o["y"] - A * math.sin(W * t - phase)),
+        )
+    assert worst < 1e-8 * A
+
+
+def test_rotor_applies_a_reset_at_the_start_of_the_next_step():
+    unit = make_unit("rotor", "jeffcott", **{**ROTOR, "eccentricity": 0.0})
+    unit.set_inputs({"reset_vx": 0.3, "reset_vy": -0.2, "reset_counter": 1})
+    assert unit.get_outputs()["vx"] == 0.0  # not before the step
+    unit.do_step(0.0, 0.0)
+    o = unit.get_outputs()
+    assert (o["vx"], o["vy"], o["resets_applied"]) == (0.3, -0.2, 1)
+    unit.do_step(0.0, 1e-4)  # the same counter: no second reset
+    assert unit.get_outputs()["vx"] != 0.3
+    # free motion from the reset velocity: x = v0 sin(wn t)/wn (undamped check with c = 0)
+    free = make_unit("rotor", "jeffcott", **{**ROTOR, "damping": 0.0, "eccentricity": 0.0})
+    free.set_inputs({"reset_vx": 0.3, "reset_counter": 7})
+    free.do_step(0.0, 1e-3)
+    wn = math.sqrt(1e6 / 10.0)
+    assert free.get_outputs()["x"] == pytest.approx(0.3 * math.sin(wn * 1e-3) / wn, rel=1e-9)
+
+
+def test_two_mass_rotor_journal_feels_the_bearing_input():
+    unit = make_unit("rotor", "two_mass", **{**ROTOR, "eccentricity": 0.0}, journal_mass=2.0)
+    unit.set_inputs({"journal_fx": 100.0})
+    unit.do_step(0.0, 1e-4)
+    o = unit.get_outputs()
+    # at first the journal accelerates alone: x ~ F t^2 / (2 mj)
+    assert o["journal_x"] == pytest.approx(100.0 * 1e-8 / 4.0, rel=1e-2)
+    assert abs(o["x"]) < 1e-3 * o["journal_x"]
+
+
+def test_rigid_stator_outputs_the_impact_law():
+    unit = make_unit(
+        "stator", "rigid", clearance=1e-4, x_offset=1e-5, restitution=0.8, friction=0.15,
+        disc_radius=0.05, speed=W,
+    )  # fmt: skip
+    unit.set_inputs({"x": 1.1e-4, "y": 2e-5, "vx": 0.05, "vy": 0.01})
+    o = unit.get_outputs()
+    rx, ry = 1e-4, 2e-5
+    dist = math.hypot(rx, ry)
+    nx, ny = rx / dist, ry / dist
+    assert o["gap"] == pytest.approx(1e-4 - dist, abs=1e-18)
+    assert o["gap_rate"] == pytest.approx(-(0.05 * nx + 0.01 * ny))
+    assert (o["vx_plus"], o["vy_plus"]) == rigid_impact(0.05, 0.01, nx, ny, 0.8, 0.15, 0.05, W)
+
+
+def test_elastic_stator_force_is_the_penalty_law():
+    unit = ex("stator", "elastic", contact_stiffness=2e7, contact_damping=50.0, friction=0.1,
+                     disc_radius=0.05, speed=W)  # fmt: skip
+    unit.set_inputs({"x": 1.02e-4, "y": 1e-5, "vx": 0.01, "vy": 0.02})
+    o = unit.get_outputs()
+    fx, fy, fn = penalty_contact_force(1.02e-4, 1e-5, 0.01, 0.02, 1e-4, 2e7, 50.0, 0.1, 0.05, W)
+    assert (o["fx"], o["fy"], o["normal_force"]) == (fx, fy, fn)
+    assert o["gap"] < 0 and fn > 0
+
+
+def test_casing_oscillates_freely_while_the_disc_is_clear():
+    ms, ks = 5.0, 2e6
+    unit = ex("stator", "casing", mass=ms, stiffness=ks, x0=2e-5, contact_stiffness=2e7,
+                     contact_damping=0.0)  # fmt: skip
+    ws = math.sqrt(ks / ms)
+    h = 1e-4
+    for i in range(50):
+        unit.do_step(i * h, h)
+        assert unit.get_outputs()["casing_x"] == pytest.approx(
+            2e-5 * math.cos(ws * (i + 1) * h), abs=1e-14
+        )
+    assert unit.get_outputs()["fx"] == 0.0
+
+
+def test_bearings_output_their_force_laws():
+    oil = make_unit("bearing", "oilfilm", viscosity=0.02, radius=0.03, length=0.03,
+                    clearance=1.5e-4, speed=700.0)  # fmt: skip
+    oil.set_inputs({"x": 5e-5, "y": -3e-5, "vx": 0.01, "vy": 0.0})
+    sigma = oilfilm_sigma(0.02, 700.0, 0.03, 0.03, 1.5e-4)
+    assert tuple(oil.get_outputs().values()) == oilfilm_force(
+        5e-5, -3e-5, 0.01, 0.0, 700.0, 1.5e-4, sigma
+    )
+    oil.set_inputs({"x": 2e-4})
+    with pytest.raises(ValueError, match="touches the bearing wall"):
+        oil.get_outputs()
+    lin = make_unit("bearing", "linear", stiffness=1e7, damping=100.0)
+    lin.set_inputs({"x": 1e-5, "vy": 0.1})
+    assert lin.get_outputs() == pytest.approx({"fx": -100.0, "fy": -10.0}, rel=1e-15)
+
+
+def test_controller_force_follows_the_delayed_signal():
+    K, tau, w = 1e5, 2e-3, 1000.0
+    unit = make_unit("controller", "delayed_feedback", gain=K, delay=tau, speed=0.0)
+    h = 1e-4
+    worst = 0.0
+    for i in range(100):
+        t = i * h
+        unit.set_inputs({"x": 1e-5 * math.sin(w * t)})
+        unit.do_step(t, h)
+        t += h
+        unit.set_inputs({"x": 1e-5 * math.sin(w * t)})
+        if t > tau + 3 * h:
+            want = K * 1e-5 * (math.sin(w * (t - tau)) - math.sin(w * t))
+            worst = max(worst, abs(unit.get_outputs()["fx"] - want))
+    # cubic interpolation of samples 0.1 rad apart: error ~ (w h)^4 / 24 of K A
+    assert worst < 1e-4 * K * 1e-5
+    late = make_unit("controller", "delayed_feedback", gain=K, delay=tau, speed=0.0, t_on=1.0)
+    late.set_inputs({"x": 1e-5})
+    assert late.get_outputs()["fx"] == 0.0
+
+
+def test_base_delay_checks():
+    p = dict(delay=-1.0, delay_periods=2, modulation_amplitude=0.0, modulation_frequency=0.0)
+    assert base_delay(p, 100.0) == pytest.approx(4 * math.pi / 100.0)
+    with pytest.raises(ParameterError, match="rotor.speed"):
+        base_delay(p, 0.0)
+    with pytest.raises(ParameterError, match="modulation_amplitude"):
+        base_delay({**p, "delay": 0.1, "modulation_amplitude": 0.2}, 1.0)
+
+
+def test_lagrange_cubic_is_exact_for_cubics():
+    ts = np.array([0.0, 0.3, 0.7, 1.0])
+    zs = np.stack([ts**3 - ts, 2 * ts], axis=1)
+    assert lagrange_cubic(ts, zs, 0.5) == pytest.approx([0.125 - 0.5, 1.0])
+
+
+def _reference_oscillator(params: dict, times: np.ndarray) -> np.ndarray:
+    system = build_system(
+        {"oscillator": make_reference_unit("oscillator", "impact_oscillator", params)}
+    )
+    res = simulate(system, float(times[-1]), t_eval=times, engine="fast", rtol=1e-12, atol=1e-14)
+    return res.output("oscillator.x")
+
+
+@pytest.mark.parametrize(
+    "params",
+    [
+        # Budd & Dux: linear oscillator, barrier at 0, w = 2.8 (chattering-free impacting orbit)
+        dict(linear_stiffness=1.0, forcing_amplitude=1.0, forcing_frequency=2.8, barrier=0.0,
+             restitution=0.8, x0=-0.2),
+        # the paper's one-sided impact Duffing oscillator
+        dict(linear_stiffness=1.0, damping=0.1, cubic_stiffness=1.0, forcing_amplitude=1.0,
+             forcing_frequency=2.0, barrier=1.0, restitution=0.8, x0=-2.0),
+        dict(linear_stiffness=1.0, damping=0.05, forcing_amplitude=0.5, forcing_frequency=1.5,
+             barrier=0.3, stop="rigid_two_sided", restitution=0.7),
+        dict(linear_stiffness=1.0, damping=0.05, forcing_amplitude=0.5, forcing_frequency=1.5,
+             barrier=0.3, stop="elastic_one_sided", stop_stiffness=20.0),
+    ],
+)  # fmt: skip
+def test_oscillator_unit_matches_the_reference_engine(params):
+    unit = make_unit("oscillator", "impact_oscillator", **params)
+    period = 2 * math.pi / params["forcing_frequency"]
+    h = period / 16
+    times = h * np.arange(1, 161)
+    xs = []
+    for i in range(times.size):
+        unit.do_step(i * h, h)
+        xs.append(unit.get_outputs()["x"])
+    want = _reference_oscillator(params, np.concatenate(([0.0], times)))[1:]
+    assert np.max(np.abs(np.array(xs) - want)) < 1e-7
+
+
+def test_oscillator_sticks_after_chattering_and_is_released():
+    # a low-restitution mass pushed onto the barrier by a slow force: chatter, stick, release
+    unit = make_unit(
+        "oscillator", "impact_oscillator", linear_stiffness=1.0, damping=0.0,
+        forcing_amplitude=2.0, forcing_frequency=0.5, barrier=0.5, restitution=0.3,
+    )  # fmt: skip
+    seen_stuck = seen_free_after = False
+    h = 0.1
+    for i in range(200):
+        unit.do_step(i * h, h)
+        o = unit.get_outputs()
+        if o["stuck"] == 1:
+            seen_stuck = True
+            assert o["x"] == 0.5 and o["v"] == 0.0
+        elif seen_stuck:
+            seen_free_after = True
+    assert seen_stuck and seen_free_after and unit.get_outputs()["impacts"] > 5
+
+
+def test_integrate_stops_at_a_terminal_event():
+    seg = integrate(lambda t, y: np.array([1.0]), 0.0, 2.0, np.array([0.0]), 1e-10, 1e-12,
+                    events=[event(lambda t, y: y[0] - 0.5, 1.0)])  # fmt: skip
+    assert seg.event == 0 and seg.t == pytest.approx(0.5) and seg.y[0] == pytest.approx(0.5)
+    seg = integrate(lambda t, y: -y, 0.0, 1.0, np.array([1.0]), 1e-10, 1e-12)
+    assert seg.event == -1 and seg.y[0] == pytest.approx(math.exp(-1.0), rel=1e-9)
+    assert seg.h_next > 0
+    assert integrate(lambda t, y: y, 1.0, 1.0, np.array([2.0]), 1e-8, 0.0).y[0] == 2.0
+
+
+def test_kernels_are_compiled_in_the_installed_package():
+    assert jit.USE_NUMBA
