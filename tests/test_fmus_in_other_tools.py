@@ -117,3 +117,57 @@ def test_ecos_runs_a_rotor_against_an_elastic_stator(built_fmus, tmp_path):
     # a fixed-step Jacobi master without event handling: first order, a few % of the clearance
     assert err < 0.05 * 1e-4, err
     assert math.isfinite(err)
+
+
+def test_rigid_impact_protocol_drives_two_fmus_like_the_reference(built_fmus):
+    """The documented stator -> rotor reset protocol, driven by a minimal event-locating
+    master over fmpy: the impact times and rebounds match the monolithic reference."""
+    from rubcosim.reference import build_system, make_unit, simulate
+
+    rotor = dict(mass=10.0, damping=316.227766, stiffness=1e6, eccentricity=5e-5,
+                 speed=379.473319, disc_radius=0.05)  # fmt: skip
+    stator = dict(clearance=1e-4, restitution=0.8, friction=0.15)
+    units = {
+        "rotor": make_unit("rotor", "jeffcott", rotor),
+        "stator": make_unit("stator", "rigid", stator),
+    }
+    ref = simulate(build_system(units), 0.03, output_step=1e-3)
+    ref_impacts = ref.events.t[ref.events.of_kind("impact")][:3]
+    assert ref_impacts.size == 3
+
+    h, t, impacts, rebounds = 1e-4, 0.0, [], []
+    extra = {"speed": rotor["speed"], "disc_radius": rotor["disc_radius"]}
+    with (
+        FmuUnit(built_fmus["RubcosimJeffcottRotor"], params=rotor) as rfmu,
+        FmuUnit(built_fmus["RubcosimRigidStator"], params={**stator, **extra}) as sfmu,
+    ):
+
+        def gap_after(t0: float, dt: float, saved) -> float:
+            rfmu.set_state(saved)
+            rfmu.do_step(t0, dt)
+            o = rfmu.get_outputs()
+            sfmu.set_inputs({k: o[k] for k in ("x", "y", "vx", "vy")})
+            return sfmu.get_outputs()["gap"]
+
+        while len(impacts) < 3:
+            saved = rfmu.get_state()
+            if gap_after(t, h, saved) >= 0.0:
+                t += h
+            else:  # bisect the step onto the crossing, then apply the impact
+                lo, hi = 0.0, h
+                while hi - lo > 1e-13:
+                    mid = 0.5 * (lo + hi)
+                    lo, hi = (lo, mid) if gap_after(t, mid, saved) < 0.0 else (mid, hi)
+                gap_after(t, lo, saved)
+                t += lo
+                o = sfmu.get_outputs()
+                rfmu.set_inputs({"reset_vx": o["vx_plus"], "reset_vy": o["vy_plus"],
+                                 "reset_counter": len(impacts) + 1})  # fmt: skip
+                rfmu.do_step(t, 0.0)
+                assert rfmu.get_outputs()["resets_applied"] == len(impacts) + 1
+                impacts.append(t)
+                rebounds.append((o["vx_plus"], o["vy_plus"]))
+            rfmu.free_state(saved)
+    np.testing.assert_allclose(impacts, ref_impacts, rtol=0, atol=1e-9)
+    ref_states = ref.events.state[ref.events.of_kind("impact")][:3, 2:4]
+    np.testing.assert_allclose(rebounds, ref_states, rtol=1e-6)
