@@ -29,7 +29,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from .parameters import Param, ParameterError, real, resolve
+from .parameters import Param, real, resolve
 
 
 class StepError(RuntimeError):
@@ -205,11 +205,3 @@ class Unit:
             return decode(json.loads(data.decode("utf-8")))
         except (UnicodeDecodeError, json.JSONDecodeError) as exc:
             raise ValueError(f"not a serialised unit state: {exc}") from exc
-
-
-def check_finite_params(unit: str, params: Mapping[str, Any]) -> None:
-    """Raise ParameterError for a non-finite real (resolve() already refuses them; kept
-    for values derived from several parameters)."""
-    for name, value in params.items():
-        if isinstance(value, float) and not math.isfinite(value):
-            raise ParameterError(f"{unit}.{name} = {value!r} is not finite")

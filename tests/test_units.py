@@ -119,7 +119,6 @@ def test_failed_step_leaves_the_state_untouched(key):
     unit.set_input(name, math.nan)
     with pytest.raises(StepError, match=name):
         unit.do_step(3 * h, h)
-    assert Unit.state_to_bytes(unit.get_state())[:] != b""
     unit.set_inputs(inputs(3 * h))
     after = unit.get_state()
     after["u"] = Unit.state_from_bytes(before)["u"]
