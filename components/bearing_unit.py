@@ -13,14 +13,9 @@ from .bearing import (
     oilfilm_sigma,
 )
 from .parameters import positive
-from .unit import Unit, real_signal
+from .unit import Unit, planar_motion, real_signal
 
-JOURNAL_INPUTS = (
-    real_signal("x", "m", "journal displacement along x"),
-    real_signal("y", "m", "journal displacement along y"),
-    real_signal("vx", "m/s", "journal velocity along x"),
-    real_signal("vy", "m/s", "journal velocity along y"),
-)
+JOURNAL_INPUTS = planar_motion("journal")
 
 FORCE_OUTPUTS = (
     real_signal("fx", "N", "bearing force on the journal along x"),

@@ -15,7 +15,7 @@ import numpy as np
 
 from .controller import CONTROLLER_PARAMS, base_delay, delay_at, feedback_force
 from .parameters import nonnegative
-from .unit import Unit, real_signal
+from .unit import Unit, planar_motion, real_signal
 
 SPEED = nonnegative(
     "speed",
@@ -45,12 +45,7 @@ class DelayedFeedbackUnit(Unit):
     type_name = "delayed_feedback"
     summary = "delayed-feedback (Pyragas) controller, fixed or modulated delay"
     params_spec = (*CONTROLLER_PARAMS, SPEED)
-    inputs = (
-        real_signal("x", "m", "disc displacement along x"),
-        real_signal("y", "m", "disc displacement along y"),
-        real_signal("vx", "m/s", "disc velocity along x"),
-        real_signal("vy", "m/s", "disc velocity along y"),
-    )
+    inputs = planar_motion("disc")
     outputs = (
         real_signal("fx", "N", "control force on the disc along x"),
         real_signal("fy", "N", "control force on the disc along y"),

@@ -93,6 +93,54 @@ def shaft_force(
     return -k * (xd - xj) - cs * (vxd - vxj), -k * (yd - yj) - cs * (vyd - vyj)
 
 
+@njit
+def two_mass_disc_force(
+    t: float,
+    xd: float,
+    yd: float,
+    vxd: float,
+    vyd: float,
+    xj: float,
+    yj: float,
+    vxj: float,
+    vyj: float,
+    m: float,
+    c: float,
+    k: float,
+    cs: float,
+    e: float,
+    w: float,
+    g: float,
+) -> tuple[float, float]:
+    """All forces on the disc of a two-mass rotor except contact and control, N:
+    unbalance, damping to ground, gravity and the shaft to the journal."""
+    fx, fy = jeffcott_force(t, xd, yd, vxd, vyd, m, c, 0.0, e, w, g)
+    sx, sy = shaft_force(xd, yd, vxd, vyd, xj, yj, vxj, vyj, k, cs)
+    return fx + sx, fy + sy
+
+
+@njit
+def journal_force(
+    xd: float,
+    yd: float,
+    vxd: float,
+    vyd: float,
+    xj: float,
+    yj: float,
+    vxj: float,
+    vyj: float,
+    k: float,
+    cs: float,
+    mj: float,
+    cj: float,
+    g: float,
+) -> tuple[float, float]:
+    """All forces on the journal except the bearing's, N: the shaft (reaction of
+    :func:`shaft_force`), damping to ground and gravity."""
+    sx, sy = shaft_force(xd, yd, vxd, vyd, xj, yj, vxj, vyj, k, cs)
+    return -sx - cj * vxj, -sy - cj * vyj - mj * g
+
+
 def free_whirl(mass: float, damping: float, stiffness: float, eccentricity: float, speed: float):
     """Steady unbalance whirl of a free Jeffcott disc: x = A cos(w t - phase).
 

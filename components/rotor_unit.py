@@ -15,9 +15,15 @@ from typing import Any
 
 import numpy as np
 
-from .rotor import JEFFCOTT_PARAMS, TWO_MASS_PARAMS, jeffcott_force, shaft_force
+from .rotor import (
+    JEFFCOTT_PARAMS,
+    TWO_MASS_PARAMS,
+    jeffcott_force,
+    journal_force,
+    two_mass_disc_force,
+)
 from .stepping import integrate
-from .unit import INTEGRATOR_PARAMS, Unit, integer_signal, real_signal
+from .unit import INTEGRATOR_PARAMS, Unit, integer_signal, planar_motion, real_signal
 
 _DISC_INPUTS = (
     real_signal("fx", "N", "external force on the disc along x (contact + control)"),
@@ -28,10 +34,7 @@ _DISC_INPUTS = (
 )
 
 _DISC_OUTPUTS = (
-    real_signal("x", "m", "disc displacement along x"),
-    real_signal("y", "m", "disc displacement along y"),
-    real_signal("vx", "m/s", "disc velocity along x"),
-    real_signal("vy", "m/s", "disc velocity along y"),
+    *planar_motion("disc"),
     integer_signal("resets_applied", "reset_counter value of the last applied reset"),
 )
 
@@ -46,7 +49,6 @@ RESET_PROTOCOL = (
 class _Rotor(Unit):
     role = "rotor"
     protocol = RESET_PROTOCOL
-    n_state = 4
 
     def _initial_y(self) -> list[float]:
         q = self.params
@@ -111,10 +113,7 @@ class TwoMassRotorUnit(_Rotor):
     )
     outputs = (
         *_DISC_OUTPUTS,
-        real_signal("journal_x", "m", "journal displacement along x"),
-        real_signal("journal_y", "m", "journal displacement along y"),
-        real_signal("journal_vx", "m/s", "journal velocity along x"),
-        real_signal("journal_vy", "m/s", "journal velocity along y"),
+        *planar_motion("journal", "journal_"),
     )
 
     def _initial_y(self) -> list[float]:
@@ -124,25 +123,25 @@ class TwoMassRotorUnit(_Rotor):
 
     def _rhs(self, t: float, y: np.ndarray) -> np.ndarray:
         q = self.params
-        m, mj, g = q["mass"], q["journal_mass"], q["gravity"]
-        # The disc's own forces without the shaft (stiffness 0), then the shaft to the journal.
-        fx, fy = jeffcott_force(
-            t, y[0], y[1], y[2], y[3], m, q["damping"], 0.0, q["eccentricity"], q["speed"], g
+        m, mj = q["mass"], q["journal_mass"]
+        fx, fy = two_mass_disc_force(
+            t, *y, m, q["damping"], q["stiffness"], q["shaft_damping"], q["eccentricity"],
+            q["speed"], q["gravity"],
+        )  # fmt: skip
+        jx, jy = journal_force(
+            *y, q["stiffness"], q["shaft_damping"], mj, q["journal_damping"], q["gravity"]
         )
-        sx, sy = shaft_force(
-            y[0], y[1], y[2], y[3], y[4], y[5], y[6], y[7], q["stiffness"], q["shaft_damping"]
-        )
-        cj = q["journal_damping"]
+        u = self.u
         return np.array(
             [
                 y[2],
                 y[3],
-                (fx + sx + self.u["fx"]) / m,
-                (fy + sy + self.u["fy"]) / m,
+                (fx + u["fx"]) / m,
+                (fy + u["fy"]) / m,
                 y[6],
                 y[7],
-                (-sx + self.u["journal_fx"] - cj * y[6]) / mj,
-                (-sy + self.u["journal_fy"] - cj * y[7]) / mj - g,
+                (jx + u["journal_fx"]) / mj,
+                (jy + u["journal_fy"]) / mj,
             ]
         )
 

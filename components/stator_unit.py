@@ -18,6 +18,7 @@ from typing import Any
 
 import numpy as np
 
+from .bearing import linear_bearing_force
 from .parameters import ParameterError, nonnegative
 from .stator import (
     CASING_PARAMS,
@@ -29,7 +30,7 @@ from .stator import (
     rigid_impact,
 )
 from .stepping import integrate
-from .unit import INTEGRATOR_PARAMS, Unit, real_signal
+from .unit import INTEGRATOR_PARAMS, Unit, planar_motion, real_signal
 
 ROTOR_PARAMS = (
     nonnegative("speed", 0.0, "rad/s", "spin speed w of the rotor this stator meets"),
@@ -44,12 +45,7 @@ IMPACT_MASS = nonnegative(
     "restitution; needed only when contact_damping < 0 and restitution < 1",
 )
 
-DISC_INPUTS = (
-    real_signal("x", "m", "disc displacement along x"),
-    real_signal("y", "m", "disc displacement along y"),
-    real_signal("vx", "m/s", "disc velocity along x"),
-    real_signal("vy", "m/s", "disc velocity along y"),
-)
+DISC_INPUTS = planar_motion("disc")
 
 GAP = real_signal("gap", "m", "event indicator: clearance minus disc distance (> 0 while clear)")
 GAP_RATE = real_signal("gap_rate", "m/s", "time derivative of gap (< 0 while approaching)")
@@ -171,10 +167,7 @@ class CasingStatorUnit(_Penalty):
     inputs = DISC_INPUTS
     outputs = (
         *_FORCE_OUTPUTS,
-        real_signal("casing_x", "m", "casing displacement along x"),
-        real_signal("casing_y", "m", "casing displacement along y"),
-        real_signal("casing_vx", "m/s", "casing velocity along x"),
-        real_signal("casing_vy", "m/s", "casing velocity along y"),
+        *planar_motion("casing", "casing_"),
     )
 
     def _initial_state(self) -> dict[str, Any]:
@@ -188,11 +181,11 @@ class CasingStatorUnit(_Penalty):
     def _rhs(self, t: float, c: np.ndarray) -> np.ndarray:
         q = self.params
         fx, fy, _, _, _ = self._contact(*self._centre(c))
-        ms, ks, cs = q["mass"], q["stiffness"], q["damping"]
-        # The casing feels the opposite of the force on the disc.
-        return np.array(
-            [c[2], c[3], (-fx - ks * c[0] - cs * c[2]) / ms, (-fy - ks * c[1] - cs * c[3]) / ms]
-        )
+        # the mount is an isotropic spring-damper (the linear bearing's law); the casing
+        # feels the opposite of the contact force on the disc
+        sx, sy = linear_bearing_force(c[0], c[1], c[2], c[3], q["stiffness"], q["damping"])
+        ms = q["mass"]
+        return np.array([c[2], c[3], (sx - fx) / ms, (sy - fy) / ms])
 
     def _advance(self, t: float, h: float) -> None:
         q = self.params

@@ -55,6 +55,17 @@ def integer_signal(name: str, description: str, start: int = 0) -> Signal:
     return Signal(name, "", description, "integer", start)
 
 
+def planar_motion(body: str, prefix: str = "") -> tuple[Signal, ...]:
+    """Position and velocity of a body in the plane: ``x, y, vx, vy`` (m, m/s), each name
+    preceded by ``prefix``."""
+    return (
+        real_signal(f"{prefix}x", "m", f"{body} displacement along x"),
+        real_signal(f"{prefix}y", "m", f"{body} displacement along y"),
+        real_signal(f"{prefix}vx", "m/s", f"{body} velocity along x"),
+        real_signal(f"{prefix}vy", "m/s", f"{body} velocity along y"),
+    )
+
+
 INTEGRATOR_PARAMS = (
     real("rtol", 1e-10, "1", "relative tolerance of the unit's internal integrator", 1e-14, 1e-2),
     real("atol", 1e-14, "1", "absolute tolerance of the internal integrator (state units)", 0.0),

@@ -24,20 +24,18 @@ import hashlib
 import shutil
 import tempfile
 import uuid
-import zipfile
 from dataclasses import dataclass
 from pathlib import Path
 
-from rubcosim import __version__
+from rubcosim import __version__, components
 from rubcosim.components.unit import Unit
 from rubcosim.components.units import UNIT_CLASSES
 
 from .native import install_loader
 
-COMPONENTS_DIR = Path(__file__).resolve().parent.parent / "components"
+COMPONENTS_DIR = Path(components.__file__).resolve().parent
 ADAPTER = Path(__file__).resolve().parent / "fmi_slave.py"
 DEFAULT_OUT = Path("build") / "fmus"
-ZIP_EPOCH = (1980, 1, 1, 0, 0, 0)
 
 MODEL_IDENTIFIERS: dict[tuple[str, str], str] = {
     ("rotor", "jeffcott"): "RubcosimJeffcottRotor",
@@ -164,28 +162,7 @@ def _build_one(spec: FmuSpec, tmp: Path, bundle: str, digest: str, out: Path) ->
             canGetAndSetFMUstate=True,
             canSerializeFMUstate=True,
         )
-        install_loader(Path(fmu))
-        _normalise_archive(Path(fmu))
+        install_loader(Path(fmu))  # also normalises the archive: same sources, same bytes
     except Exception as exc:
         raise BuildError(f"building {spec.identifier} failed: {exc}") from exc
     return Path(fmu)
-
-
-def _normalise_archive(fmu: Path) -> None:
-    """Sorted entries, fixed timestamps and modes, no bytecode: the same sources give
-    the same bytes.  Written beside the FMU and moved over it, so a failure loses nothing."""
-    with zipfile.ZipFile(fmu) as src:
-        entries = sorted(
-            (info.filename, src.read(info))
-            for info in src.infolist()
-            if not info.is_dir() and "__pycache__" not in info.filename
-        )
-    tmp = fmu.with_suffix(".fmu.part")
-    with zipfile.ZipFile(tmp, "w", zipfile.ZIP_DEFLATED) as dst:
-        for name, data in entries:
-            info = zipfile.ZipInfo(name, ZIP_EPOCH)
-            executable = name.startswith("binaries/")
-            info.external_attr = (0o755 if executable else 0o644) << 16
-            info.compress_type = zipfile.ZIP_DEFLATED
-            dst.writestr(info, data)
-    tmp.replace(fmu)

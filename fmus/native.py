@@ -166,8 +166,9 @@ def install_loader(fmu: Path) -> None:
     ``binaries/linux64/<id>.so`` becomes ``<id>_pythonfmu_export.so``, the compiled shim takes its
     name and ``resources/rubcosim_python.txt`` records the current interpreter.  Other platforms'
     binaries are left alone.  Running it again refreshes shim and record and keeps the export
-    library.  The archive is written to a temporary file and swapped in with ``os.replace``, so a
-    failure leaves the original FMU intact.
+    library.  The archive is rewritten normalised (sorted entries, fixed timestamps and modes, no
+    bytecode), so the same inputs give the same bytes; it is written to a temporary file and
+    swapped in with ``os.replace``, so a failure leaves the original FMU intact.
     """
     fmu = Path(fmu)
     ident = model_identifier(fmu)
@@ -186,9 +187,11 @@ def install_loader(fmu: Path) -> None:
                 raise ValueError(f"{fmu}: no {shim_name} (not a pythonfmu FMU for linux64?)")
             entries: dict[str, tuple[zipfile.ZipInfo, bytes]] = {}
             for info in src.infolist():
-                if info.filename in (shim_name, export_name, RUNTIME_FILE) or info.is_dir():
+                skip = info.filename in (shim_name, export_name, RUNTIME_FILE)
+                if skip or info.is_dir() or "__pycache__" in info.filename:
                     continue
-                entries[info.filename] = (info, src.read(info))
+                mode = 0o755 if info.filename.startswith("binaries/") else 0o644
+                entries[info.filename] = (_new_info(info.filename, mode), src.read(info))
             export_bytes = src.read(export_info)
 
         entries[export_name] = (_new_info(export_name, 0o755), export_bytes)

@@ -1,4 +1,5 @@
-"""Co-simulation master coupling the FMU units.
+"""Co-simulation master coupling the units.
 
-Built in a later step of the project (see the issues); nothing is exported yet.
+So far :mod:`.fmu_unit` (any FMI 2.0 co-simulation FMU driven by variable name); the
+master algorithms come next (see the issues).
 """

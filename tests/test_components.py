@@ -202,3 +202,17 @@ def test_penalty_normal_force_and_components():
     assert fn == pytest.approx(1e6 * 1e-4 + 10.0 * 0.6)
     fx, fy = contact_force_components(2.0, 1.0, 0.6, 0.8)
     assert (fx, fy) == pytest.approx((-2.0 * 0.6 - 1.0 * 0.8, -2.0 * 0.8 + 1.0 * 0.6))
+
+
+def test_two_mass_forces_obey_action_and_reaction():
+    from rubcosim.components.rotor import journal_force, two_mass_disc_force
+
+    state = (2e-5, -1e-5, 0.01, 0.02, 5e-6, 3e-6, -0.004, 0.001)
+    # with no unbalance, ground damping or gravity only the shaft acts: equal and opposite
+    dx, dy = two_mass_disc_force(0.3, *state, 10.0, 0.0, 1e6, 50.0, 0.0, 300.0, 0.0)
+    jx, jy = journal_force(*state, 1e6, 50.0, 2.0, 0.0, 0.0)
+    assert (dx + jx, dy + jy) == pytest.approx((0.0, 0.0), abs=1e-12)
+    assert dx == pytest.approx(-1e6 * 1.5e-5 - 50.0 * 0.014)
+    # ground damping and gravity on the journal
+    gx, gy = journal_force(*state, 1e6, 50.0, 2.0, 30.0, 9.81)
+    assert (gx - jx, gy - jy) == pytest.approx((30.0 * 0.004, -30.0 * 0.001 - 2.0 * 9.81))

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import re
 import subprocess
 import sys
@@ -21,27 +22,14 @@ from rubcosim.components.units import UNIT_CLASSES
 from rubcosim.fmus.build import MODEL_IDENTIFIERS, BuildRequestError, build_fmus, fmu_specs
 from rubcosim.orchestrator.fmu_unit import FmuError, FmuUnit
 
-from test_units import STIMULI, stimulus
+from test_units import KEY_OF, STIMULI, run, step_size, stimulus
 
 IDENTIFIERS = sorted(MODEL_IDENTIFIERS.values())
-KEY_OF = {ident: key for key, ident in MODEL_IDENTIFIERS.items()}
 PYTHON = sys.executable
 
 
-def fmu_run(unit: FmuUnit, inputs, t0: float, n: int, h: float) -> list[dict]:
-    out = []
-    t = t0
-    for _ in range(n):
-        unit.set_inputs(inputs(t))
-        unit.do_step(t, h)
-        t += h
-        unit.set_inputs(inputs(t))
-        out.append(unit.get_outputs())
-    return out
-
-
 def step_of(ident: str) -> float:
-    return 0.05 if KEY_OF[ident][0] == "oscillator" else 1e-4
+    return step_size(KEY_OF[ident][0])
 
 
 def stimulus_params(ident: str) -> dict:
@@ -104,18 +92,18 @@ def test_fmu_state_restore_and_serialisation_are_bit_identical(built_fmus, ident
     _, inputs = stimulus(KEY_OF[ident])
     h = step_of(ident)
     with FmuUnit(built_fmus[ident], params=stimulus_params(ident)) as fmu:
-        fmu_run(fmu, inputs, 0.0, 5, h)
+        run(fmu, inputs, 0.0, 5, h)
         state = fmu.get_state()
-        first = fmu_run(fmu, inputs, 5 * h, 5, h)
+        first = run(fmu, inputs, 5 * h, 5, h)
         fmu.set_state(state)
-        again = fmu_run(fmu, inputs, 5 * h, 5, h)
+        again = run(fmu, inputs, 5 * h, 5, h)
         fmu.set_state(state)  # the same snapshot twice
-        third = fmu_run(fmu, inputs, 5 * h, 5, h)
+        third = run(fmu, inputs, 5 * h, 5, h)
         data = fmu.serialize_state(state)
         fmu.free_state(state)
         restored = fmu.deserialize_state(data)
         fmu.set_state(restored)
-        fourth = fmu_run(fmu, inputs, 5 * h, 5, h)
+        fourth = run(fmu, inputs, 5 * h, 5, h)
         fmu.free_state(restored)
     assert first == again == third == fourth
     assert any(v != 0 for o in first for v in o.values())
@@ -128,15 +116,8 @@ def test_fmu_matches_the_unit_it_wraps(built_fmus, ident):
     h = step_of(ident)
     unit = UNIT_CLASSES[key](**params)
     with FmuUnit(built_fmus[ident], params=stimulus_params(ident)) as fmu:
-        got = fmu_run(fmu, inputs, 0.0, 10, h)
-    t = 0.0
-    want = []
-    for _ in range(10):
-        unit.set_inputs(inputs(t))
-        unit.do_step(t, h)
-        t += h
-        unit.set_inputs(inputs(t))
-        want.append(unit.get_outputs())
+        got = run(fmu, inputs, 0.0, 10, h)
+    want = run(unit, inputs, 0.0, 10, h)
     # the same code; the FMU runs the kernels as plain Python, the unit compiled by numba,
     # so the last bit may differ
     for g, w in zip(got, want, strict=True):
@@ -159,7 +140,7 @@ def test_a_failing_step_is_reported_and_leaves_the_state(built_fmus, ident):
     cls = UNIT_CLASSES[KEY_OF[ident]]
     name = next(s.name for s in cls.inputs if s.kind == "real")
     with FmuUnit(built_fmus[ident], params=stimulus_params(ident)) as fmu:
-        fmu_run(fmu, inputs, 0.0, 3, h)
+        run(fmu, inputs, 0.0, 3, h)
         before = fmu.serialize_state(fmu.get_state())
         fmu.set_input(name, math.nan)
         with pytest.raises(StepError, match=rf"input {name} = nan is not finite"):
@@ -226,7 +207,7 @@ def test_fmu_simulates_with_fmpy_in_a_fresh_process(built_fmus, ident, tmp_path)
     assert not out["rubcosim_imported"]
 
 
-def test_fmu_runs_without_numba_and_with_it(built_fmus, tmp_path, monkeypatch):
+def test_fmu_runs_without_numba_and_with_it(built_fmus, tmp_path):
     path = str(built_fmus["RubcosimImpactOscillator"])
     start = json.dumps(stimulus_params("RubcosimImpactOscillator"))
     results = []
@@ -238,7 +219,7 @@ def test_fmu_runs_without_numba_and_with_it(built_fmus, tmp_path, monkeypatch):
         proc = subprocess.run(
             [PYTHON, "-c", FRESH, "osc", path, "2.0", "0.05", start, *extra],
             capture_output=True, text=True, timeout=180, cwd=tmp_path, check=False,
-            env={**__import__("os").environ, **env},
+            env={**os.environ, **env},
         )  # fmt: skip
         assert proc.returncode == 0, proc.stderr[-2000:]
         results.append(json.loads(proc.stdout.strip().splitlines()[-1]))

@@ -16,9 +16,8 @@ from rubcosim.fmus.build import MODEL_IDENTIFIERS
 from rubcosim.orchestrator.fmu_unit import FmuUnit
 
 from fmi_c_host import compile_host, run_host
-from test_units import stimulus
+from test_units import KEY_OF, step_size, stimulus
 
-KEY_OF = {ident: key for key, ident in MODEL_IDENTIFIERS.items()}
 STEPS = 20
 
 
@@ -39,7 +38,7 @@ def test_c_host_runs_each_fmu_like_fmpy_does(built_fmus, host, tmp_path, ident):
     PYTHONPATH) steps the FMU and exits cleanly, with the same numbers as in-process fmpy."""
     fmu = built_fmus[ident]
     params, inputs = stimulus(KEY_OF[ident])
-    h = 0.05 if KEY_OF[ident][0] == "oscillator" else 1e-4
+    h = step_size(KEY_OF[ident][0])
     guid, variables = _description(fmu)
     reals = {n: v for n, v in variables.items() if v.find("Real") is not None}
     sets = {n: float(v) for n, v in {**params, **inputs(0.0)}.items() if n in reals}

@@ -9,6 +9,7 @@ import pytest
 
 from rubcosim.components import jit
 from rubcosim.components.bearing import oilfilm_force, oilfilm_sigma
+from rubcosim.components.catalog import UNIT_TYPES
 from rubcosim.components.controller import base_delay
 from rubcosim.components.controller_unit import lagrange_cubic
 from rubcosim.components.parameters import ParameterError
@@ -17,6 +18,7 @@ from rubcosim.components.stator import penalty_contact_force, rigid_impact
 from rubcosim.components.stepping import event, integrate
 from rubcosim.components.unit import StepError, Unit
 from rubcosim.components.units import UNIT_CLASSES, make_unit, unit_class
+from rubcosim.fmus.build import MODEL_IDENTIFIERS
 from rubcosim.reference import build_system, simulate
 from rubcosim.reference import make_unit as make_reference_unit
 
@@ -60,11 +62,16 @@ def stimulus(key: tuple[str, str]):
     return {**unit_class(*key).example_params(), **params}, inputs or _disc_near_stator
 
 
-def step_size(unit: Unit) -> float:
-    return 0.05 if unit.role == "oscillator" else 1e-4
+KEY_OF = {ident: key for key, ident in MODEL_IDENTIFIERS.items()}  # FMU -> (role, type)
 
 
-def run(unit: Unit, inputs, t0: float, n: int, h: float) -> list[dict[str, float]]:
+def step_size(role: str) -> float:
+    """Communication step used for a unit of this role in the tests, s."""
+    return 0.05 if role == "oscillator" else 1e-4
+
+
+def run(unit, inputs, t0: float, n: int, h: float) -> list[dict[str, float]]:
+    """Step a Unit or an FmuUnit ``n`` times with ``inputs(t)``; outputs after each step."""
     out = []
     t = t0
     for _ in range(n):
@@ -74,6 +81,13 @@ def run(unit: Unit, inputs, t0: float, n: int, h: float) -> list[dict[str, float
         unit.set_inputs(inputs(t))
         out.append(unit.get_outputs())
     return out
+
+
+def test_every_catalogued_unit_type_has_a_unit_class_with_its_parameters():
+    catalogued = {(role, t): ps for role, types in UNIT_TYPES.items() for t, ps in types.items()}
+    assert set(UNIT_CLASSES) == set(catalogued)
+    for key, cls in UNIT_CLASSES.items():
+        assert set(catalogued[key]) <= set(cls.params_spec)
 
 
 @pytest.mark.parametrize("key", sorted(UNIT_CLASSES))
@@ -93,7 +107,7 @@ def test_unit_declares_what_it_computes(key):
 def test_snapshot_restore_is_bit_identical(key):
     params, inputs = stimulus(key)
     unit = make_unit(*key, **params)
-    h = step_size(unit)
+    h = step_size(unit.role)
     run(unit, inputs, 0.0, 5, h)
     snap = unit.get_state()
     first = run(unit, inputs, 5 * h, 5, h)
@@ -112,7 +126,7 @@ def test_snapshot_restore_is_bit_identical(key):
 def test_failed_step_leaves_the_state_untouched(key):
     params, inputs = stimulus(key)
     unit = make_unit(*key, **params)
-    h = step_size(unit)
+    h = step_size(unit.role)
     run(unit, inputs, 0.0, 3, h)
     before = Unit.state_to_bytes(unit.get_state())
     name = next(s.name for s in unit.inputs if s.kind == "real")

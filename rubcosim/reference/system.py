@@ -53,7 +53,7 @@ from rubcosim.components.oscillator import (
     free_acceleration,
     impact_velocity,
 )
-from rubcosim.components.rotor import jeffcott_force, shaft_force
+from rubcosim.components.rotor import jeffcott_force, journal_force, two_mass_disc_force
 from rubcosim.components.stator import (
     constraint_normal_force,
     contact_force_components,
@@ -140,11 +140,11 @@ def disc_external_force(t: float, y: np.ndarray, yd: np.ndarray, p: np.ndarray, 
     """Every force on the disc except the stator contact, N."""
     x, yy, vx, vy = y[0], y[1], y[2], y[3]
     if ip[IP_ROTOR] == ROTOR_TWO_MASS:
-        fx, fy = jeffcott_force(t, x, yy, vx, vy, p[P_M], p[P_C], 0.0, p[P_E], p[P_W], p[P_G])
         j = ip[IP_JOURNAL]
-        sx, sy = shaft_force(x, yy, vx, vy, y[j], y[j + 1], y[j + 2], y[j + 3], p[P_K], p[P_CSH])
-        fx += sx
-        fy += sy
+        fx, fy = two_mass_disc_force(
+            t, x, yy, vx, vy, y[j], y[j + 1], y[j + 2], y[j + 3],
+            p[P_M], p[P_C], p[P_K], p[P_CSH], p[P_E], p[P_W], p[P_G],
+        )  # fmt: skip
     else:
         fx, fy = jeffcott_force(t, x, yy, vx, vy, p[P_M], p[P_C], p[P_K], p[P_E], p[P_W], p[P_G])
     ux, uy = control_force(t, y, yd, p, ip)
@@ -174,7 +174,8 @@ def casing_support_force(y: np.ndarray, p: np.ndarray, ip: np.ndarray):
     c = ip[IP_CASING]
     if c < 0:
         return 0.0, 0.0
-    return -p[P_KS] * y[c] - p[P_CSC] * y[c + 2], -p[P_KS] * y[c + 1] - p[P_CSC] * y[c + 3]
+    # the casing mount is an isotropic spring-damper: the linear bearing's law
+    return linear_bearing_force(y[c], y[c + 1], y[c + 2], y[c + 3], p[P_KS], p[P_CSC])
 
 
 @nb.njit(cache=True, inline="always")
@@ -233,22 +234,24 @@ def rotor_rhs(t, y, yd, mode, p, ip, dy):
     dy[3] = (fy + cfy) / m
     j = ip[IP_JOURNAL]
     if j >= 0:
-        sx, sy = shaft_force(
-            y[0], y[1], y[2], y[3], y[j], y[j + 1], y[j + 2], y[j + 3], p[P_K], p[P_CSH]
-        )
-        bx, by = bearing_force(y, p, ip)
         mj = p[P_MJ]
+        jx, jy = journal_force(
+            y[0], y[1], y[2], y[3], y[j], y[j + 1], y[j + 2], y[j + 3],
+            p[P_K], p[P_CSH], mj, p[P_CJ], p[P_G],
+        )  # fmt: skip
+        bx, by = bearing_force(y, p, ip)
         dy[j] = y[j + 2]
         dy[j + 1] = y[j + 3]
-        dy[j + 2] = (-sx + bx - p[P_CJ] * y[j + 2]) / mj
-        dy[j + 3] = (-sy + by - p[P_CJ] * y[j + 3]) / mj - p[P_G]
+        dy[j + 2] = (jx + bx) / mj
+        dy[j + 3] = (jy + by) / mj
     c = ip[IP_CASING]
     if c >= 0:
         ms = p[P_MS]
+        sx, sy = casing_support_force(y, p, ip)
         dy[c] = y[c + 2]
         dy[c + 1] = y[c + 3]
-        dy[c + 2] = (-cfx - p[P_KS] * y[c] - p[P_CSC] * y[c + 2]) / ms
-        dy[c + 3] = (-cfy - p[P_KS] * y[c + 1] - p[P_CSC] * y[c + 3]) / ms
+        dy[c + 2] = (-cfx + sx) / ms
+        dy[c + 3] = (-cfy + sy) / ms
 
 
 @nb.njit(cache=True, inline="always")
