@@ -47,8 +47,8 @@ class DelayedFeedbackUnit(Unit):
     params_spec = (*CONTROLLER_PARAMS, SPEED)
     inputs = planar_motion("disc")
     outputs = (
-        real_signal("fx", "N", "control force on the disc along x"),
-        real_signal("fy", "N", "control force on the disc along y"),
+        real_signal("ux", "N", "control force on the disc along x"),
+        real_signal("uy", "N", "control force on the disc along y"),
         real_signal("current_delay", "s", "current delay tau(t)"),
     )
 
@@ -95,12 +95,12 @@ class DelayedFeedbackUnit(Unit):
         t = self.time
         tau = self._delay(t)
         if t < self.params["t_on"]:
-            return {"fx": 0.0, "fy": 0.0, "current_delay": tau}
+            return {"ux": 0.0, "uy": 0.0, "current_delay": tau}
         zx, zy = self._signal()
         dx, dy = self._delayed(t - tau)
         gain = self.params["gain"]
         return {
-            "fx": feedback_force(gain, zx, dx),
-            "fy": feedback_force(gain, zy, dy),
+            "ux": feedback_force(gain, zx, dx),
+            "uy": feedback_force(gain, zy, dy),
             "current_delay": tau,
         }

@@ -45,12 +45,14 @@ class ImpactOscillatorUnit(Unit):
     type_name = "impact_oscillator"
     summary = "single-DOF (Duffing) impact oscillator with rigid or elastic stops"
     params_spec = (*OSCILLATOR_PARAMS, *INTEGRATOR_PARAMS, CHATTER_TOL)
+    feedthrough = False
     inputs = (real_signal("force", "m/s^2", "external force per unit mass"),)
     outputs = (
         real_signal("x", "m", "displacement"),
         real_signal("v", "m/s", "velocity"),
         integer_signal("impacts", "number of impacts on a rigid stop so far"),
         integer_signal("stuck", "1 stuck on the barrier +D, -1 on -D, 0 free"),
+        real_signal("contact", "1", "0 free, 1 in an elastic stop, 2 stuck on a barrier"),
     )
 
     def _check(self, params: dict[str, Any]) -> None:
@@ -71,7 +73,7 @@ class ImpactOscillatorUnit(Unit):
             t, x, v, q["linear_stiffness"], q["damping"], q["cubic_stiffness"],
             q["forcing_amplitude"], q["forcing_frequency"],
         )  # fmt: skip
-        return acc + self.u["force"]
+        return acc + self.input_at("force", t)
 
     def _rhs(self, t: float, y: np.ndarray) -> np.ndarray:
         q = self.params
@@ -128,7 +130,18 @@ class ImpactOscillatorUnit(Unit):
 
     def _outputs(self) -> dict[str, float]:
         y = self.state["y"]
-        return {"x": y[0], "v": y[1], "impacts": self.state["impacts"], "stuck": self.state["mode"]}
+        mode = self.state["mode"]
+        D = self.params["barrier"]
+        elastic = self.params["stop"].startswith("elastic")
+        pressing = elastic and (y[0] > D or (self.two_sided and y[0] < -D))
+        contact = 2.0 if mode != FREE else (1.0 if pressing else 0.0)
+        return {
+            "x": y[0],
+            "v": y[1],
+            "impacts": self.state["impacts"],
+            "stuck": mode,
+            "contact": contact,
+        }
 
 
 def _at_rest(t: float, y: np.ndarray) -> np.ndarray:

@@ -36,6 +36,13 @@ _DISC_INPUTS = (
 _DISC_OUTPUTS = (
     *planar_motion("disc"),
     integer_signal("resets_applied", "reset_counter value of the last applied reset"),
+    real_signal(
+        "force_x",
+        "N",
+        "the rotor's own force on the disc along x (shaft, damping, unbalance, gravity): what "
+        "a rigid stator needs to hold the disc on its surface",
+    ),
+    real_signal("force_y", "N", "the rotor's own force on the disc along y"),
 )
 
 
@@ -49,6 +56,7 @@ RESET_PROTOCOL = (
 class _Rotor(Unit):
     role = "rotor"
     protocol = RESET_PROTOCOL
+    feedthrough = False
 
     def _initial_y(self) -> list[float]:
         q = self.params
@@ -74,9 +82,13 @@ class _Rotor(Unit):
     def _rhs(self, t: float, y: np.ndarray) -> np.ndarray:
         raise NotImplementedError
 
+    def _disc_force(self, t: float, y: np.ndarray) -> tuple[float, float]:
+        raise NotImplementedError
+
     def _outputs(self) -> dict[str, float]:
         y = self.state["y"]
-        out = {"x": y[0], "y": y[1], "vx": y[2], "vy": y[3]}
+        fx, fy = self._disc_force(self.time, y)
+        out = {"x": y[0], "y": y[1], "vx": y[2], "vy": y[3], "force_x": fx, "force_y": fy}
         out["resets_applied"] = self.state["resets_applied"]
         return out
 
@@ -90,14 +102,19 @@ class JeffcottRotorUnit(_Rotor):
     inputs = _DISC_INPUTS
     outputs = _DISC_OUTPUTS
 
-    def _rhs(self, t: float, y: np.ndarray) -> np.ndarray:
+    def _disc_force(self, t: float, y: np.ndarray) -> tuple[float, float]:
         q = self.params
-        fx, fy = jeffcott_force(
+        return jeffcott_force(
             t, y[0], y[1], y[2], y[3], q["mass"], q["damping"], q["stiffness"],
             q["eccentricity"], q["speed"], q["gravity"],
         )  # fmt: skip
-        m = q["mass"]
-        return np.array([y[2], y[3], (fx + self.u["fx"]) / m, (fy + self.u["fy"]) / m])
+
+    def _rhs(self, t: float, y: np.ndarray) -> np.ndarray:
+        fx, fy = self._disc_force(t, y)
+        m = self.params["mass"]
+        return np.array(
+            [y[2], y[3], (fx + self.input_at("fx", t)) / m, (fy + self.input_at("fy", t)) / m]
+        )
 
 
 class TwoMassRotorUnit(_Rotor):
@@ -121,27 +138,31 @@ class TwoMassRotorUnit(_Rotor):
         journal = [q["journal_x0"], q["journal_y0"], q["journal_vx0"], q["journal_vy0"]]
         return [*super()._initial_y(), *journal]
 
+    def _disc_force(self, t: float, y: np.ndarray) -> tuple[float, float]:
+        q = self.params
+        return two_mass_disc_force(
+            t, *y, q["mass"], q["damping"], q["stiffness"], q["shaft_damping"],
+            q["eccentricity"], q["speed"], q["gravity"],
+        )  # fmt: skip
+
     def _rhs(self, t: float, y: np.ndarray) -> np.ndarray:
         q = self.params
         m, mj = q["mass"], q["journal_mass"]
-        fx, fy = two_mass_disc_force(
-            t, *y, m, q["damping"], q["stiffness"], q["shaft_damping"], q["eccentricity"],
-            q["speed"], q["gravity"],
-        )  # fmt: skip
+        fx, fy = self._disc_force(t, y)
         jx, jy = journal_force(
             *y, q["stiffness"], q["shaft_damping"], mj, q["journal_damping"], q["gravity"]
         )
-        u = self.u
+        u = self.input_at
         return np.array(
             [
                 y[2],
                 y[3],
-                (fx + u["fx"]) / m,
-                (fy + u["fy"]) / m,
+                (fx + u("fx", t)) / m,
+                (fy + u("fy", t)) / m,
                 y[6],
                 y[7],
-                (jx + u["journal_fx"]) / mj,
-                (jy + u["journal_fy"]) / mj,
+                (jx + u("journal_fx", t)) / mj,
+                (jy + u("journal_fy", t)) / mj,
             ]
         )
 

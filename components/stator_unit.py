@@ -13,6 +13,7 @@ computed from the disc state the stator sees now), writes them to the rotor's
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from typing import Any
 
@@ -24,13 +25,17 @@ from .stator import (
     CASING_PARAMS,
     ELASTIC_PARAMS,
     RIGID_PARAMS,
+    constraint_normal_force,
+    contact_force_components,
     contact_geometry,
     damping_from_restitution,
     penalty_contact_force,
     rigid_impact,
+    slip_speed,
+    sticking_friction,
 )
 from .stepping import integrate
-from .unit import INTEGRATOR_PARAMS, Unit, planar_motion, real_signal
+from .unit import INTEGRATOR_PARAMS, Unit, integer_signal, planar_motion, real_signal
 
 ROTOR_PARAMS = (
     nonnegative("speed", 0.0, "rad/s", "spin speed w of the rotor this stator meets"),
@@ -49,6 +54,14 @@ DISC_INPUTS = planar_motion("disc")
 
 GAP = real_signal("gap", "m", "event indicator: clearance minus disc distance (> 0 while clear)")
 GAP_RATE = real_signal("gap_rate", "m/s", "time derivative of gap (< 0 while approaching)")
+NORMAL_FORCE = real_signal("normal_force", "N", "normal contact force (> 0 pushes the disc inward)")
+CONTACT = real_signal("contact", "1", "contact state: 0 free, 1 in contact or sliding, 2 sticking")
+SLIP = real_signal(
+    "slip", "m/s", "slip speed of the disc surface over the stator, v.t + Rd w (t = z x n)"
+)
+
+# contact modes of the rigid stator (the reference engine's modes, same numbers)
+MODE_FREE, MODE_SLIDE_POS, MODE_SLIDE_NEG, MODE_STICK = 0, 1, 2, 3
 
 
 def _relative(u: Mapping[str, float], cx: float, cy: float, cvx: float, cvy: float):
@@ -56,23 +69,64 @@ def _relative(u: Mapping[str, float], cx: float, cy: float, cvx: float, cvy: flo
 
 
 class RigidStatorUnit(Unit):
-    """Rigid stator: publishes the gap and the post-impact disc velocity."""
+    """Rigid stator: the gap, the post-impact disc velocity and, in sustained contact,
+    the constraint force that holds the disc on its surface."""
 
     role = "stator"
     type_name = "rigid"
-    summary = "rigid stator: gap event indicator and post-impact disc velocity (reset protocol)"
+    summary = (
+        "rigid stator: gap event indicator, post-impact disc velocity (reset protocol), "
+        "constraint and friction force in sustained contact"
+    )
     protocol = (
         "Impact protocol: gap is the event indicator (> 0 clear); when it reaches 0 with "
         "gap_rate < 0, step every unit onto the crossing time, then copy vx_plus, vy_plus to "
-        "the rotor's reset_vx, reset_vy and increment its reset_counter"
+        "the rotor's reset_vx, reset_vy and increment its reset_counter. Sustained contact: "
+        "set contact_mode (1 sliding with slip > 0, 2 sliding with slip < 0, 3 sticking) and "
+        "feed the rotor's own force plus any other disc force to other_fx, other_fy; fx, fy "
+        "then hold the disc on the stator; leave contact when normal_force falls through 0, "
+        "change the sliding mode when slip crosses 0 and leave sticking when hold_margin "
+        "falls through 0"
     )
-    params_spec = (*RIGID_PARAMS, *ROTOR_PARAMS)
-    inputs = DISC_INPUTS
+    params_spec = (
+        *RIGID_PARAMS,
+        *ROTOR_PARAMS,
+        nonnegative("disc_mass", 0.0, "kg", "disc mass; needed (> 0) only for sustained contact"),
+        nonnegative(
+            "constraint_rate",
+            0.0,
+            "rad/s",
+            "Baumgarte rate pulling drift in sustained contact back onto the surface",
+        ),
+    )
+    inputs = (
+        *DISC_INPUTS,
+        real_signal("other_fx", "N", "every force on the disc along x but the stator's"),
+        real_signal("other_fy", "N", "every force on the disc along y but the stator's"),
+        integer_signal(
+            "contact_mode", "0 free (impacts), 1 sliding slip > 0, 2 sliding slip < 0, 3 sticking"
+        ),
+    )
     outputs = (
         GAP,
         GAP_RATE,
         real_signal("vx_plus", "m/s", "disc velocity along x just after an impact now"),
         real_signal("vy_plus", "m/s", "disc velocity along y just after an impact now"),
+        real_signal("fx", "N", "contact force on the disc along x (sustained contact only)"),
+        real_signal("fy", "N", "contact force on the disc along y (sustained contact only)"),
+        NORMAL_FORCE,
+        CONTACT,
+        SLIP,
+        real_signal(
+            "hold_margin",
+            "N",
+            "friction reserve mu N - |F_hold| of a sticking contact (< 0: it starts to slide)",
+        ),
+        real_signal(
+            "hold_force",
+            "N",
+            "tangential force (along t = z x n) that would keep the slip speed constant",
+        ),
     )
 
     def _initial_state(self) -> dict[str, Any]:
@@ -88,12 +142,42 @@ class RigidStatorUnit(Unit):
         vx, vy = rigid_impact(
             rvx, rvy, nx, ny, q["restitution"], q["friction"], q["disc_radius"], q["speed"]
         )
-        return {
+        vn = rvx * nx + rvy * ny
+        out = {
             "gap": q["clearance"] - dist,
-            "gap_rate": -(rvx * nx + rvy * ny),
+            "gap_rate": -vn,
             "vx_plus": vx,
             "vy_plus": vy,
+            "slip": slip_speed(rvx, rvy, nx, ny, q["disc_radius"], q["speed"]),
+            "fx": 0.0,
+            "fy": 0.0,
+            "normal_force": 0.0,
+            "contact": 0.0,
+            "hold_margin": 0.0,
+            "hold_force": 0.0,
         }
+        mode = int(self.u["contact_mode"])
+        if mode == MODE_FREE:
+            return out
+        if mode not in (MODE_SLIDE_POS, MODE_SLIDE_NEG, MODE_STICK):
+            raise ValueError(f"{self.name}.contact_mode = {mode} is not 0, 1, 2 or 3")
+        m = q["disc_mass"]
+        if m <= 0.0:
+            raise ValueError(f"{self.name}.disc_mass must be > 0 for sustained contact")
+        ofx, ofy = self.u["other_fx"], self.u["other_fy"]
+        vt = -rvx * ny + rvy * nx
+        n = constraint_normal_force(
+            ofx, ofy, nx, ny, vt, vn, dist, q["clearance"], m, q["constraint_rate"]
+        )
+        hold = sticking_friction(-ofx * ny + ofy * nx, 0.0, vt, vn, dist, m, math.inf)
+        mu_n = q["friction"] * max(n, 0.0)
+        ft = {MODE_SLIDE_POS: -mu_n, MODE_SLIDE_NEG: mu_n, MODE_STICK: hold}[mode]
+        out["fx"], out["fy"] = contact_force_components(n, ft, nx, ny)
+        out["normal_force"] = n
+        out["contact"] = 2.0 if mode == MODE_STICK else 1.0
+        out["hold_margin"] = mu_n - abs(hold)
+        out["hold_force"] = hold
+        return out
 
 
 class _Penalty(Unit):
@@ -116,10 +200,12 @@ class _Penalty(Unit):
             return q["contact_damping"]
         return damping_from_restitution(q["restitution"], q["contact_stiffness"], q["impact_mass"])
 
-    def _contact(self, cx: float, cy: float, cvx: float, cvy: float):
-        """(fx, fy, Fn, gap, gap_rate) on the disc for a stator centred at (cx, cy)."""
+    def _contact(self, cx: float, cy: float, cvx: float, cvy: float, t: float | None = None):
+        """(fx, fy, Fn, gap, gap_rate) on the disc for a stator centred at (cx, cy), with
+        the disc state at time ``t`` inside the step (its inputs' values when None)."""
         q = self.params
-        rx, ry, rvx, rvy = _relative(self.u, cx, cy, cvx, cvy)
+        u = self.u if t is None else {k: self.input_at(k, t) for k in ("x", "y", "vx", "vy")}
+        rx, ry, rvx, rvy = _relative(u, cx, cy, cvx, cvy)
         fx, fy, fn = penalty_contact_force(
             rx, ry, rvx, rvy, q["clearance"], q["contact_stiffness"], self._contact_damping(),
             q["friction"], q["disc_radius"], q["speed"],
@@ -131,9 +217,10 @@ class _Penalty(Unit):
 _FORCE_OUTPUTS = (
     real_signal("fx", "N", "contact force on the disc along x"),
     real_signal("fy", "N", "contact force on the disc along y"),
-    real_signal("normal_force", "N", "normal contact force (> 0 pushes the disc inward)"),
+    NORMAL_FORCE,
     GAP,
     GAP_RATE,
+    CONTACT,
 )
 
 
@@ -155,7 +242,14 @@ class ElasticStatorUnit(_Penalty):
     def _outputs(self) -> dict[str, float]:
         q = self.params
         fx, fy, fn, gap, rate = self._contact(q["x_offset"], q["y_offset"], 0.0, 0.0)
-        return {"fx": fx, "fy": fy, "normal_force": fn, "gap": gap, "gap_rate": rate}
+        return {
+            "fx": fx,
+            "fy": fy,
+            "normal_force": fn,
+            "gap": gap,
+            "gap_rate": rate,
+            "contact": 1.0 if gap < 0.0 else 0.0,
+        }
 
 
 class CasingStatorUnit(_Penalty):
@@ -180,7 +274,7 @@ class CasingStatorUnit(_Penalty):
 
     def _rhs(self, t: float, c: np.ndarray) -> np.ndarray:
         q = self.params
-        fx, fy, _, _, _ = self._contact(*self._centre(c))
+        fx, fy, _, _, _ = self._contact(*self._centre(c), t)
         # the mount is an isotropic spring-damper (the linear bearing's law); the casing
         # feels the opposite of the contact force on the disc
         sx, sy = linear_bearing_force(c[0], c[1], c[2], c[3], q["stiffness"], q["damping"])
@@ -202,6 +296,7 @@ class CasingStatorUnit(_Penalty):
             "normal_force": fn,
             "gap": gap,
             "gap_rate": rate,
+            "contact": 1.0 if gap < 0.0 else 0.0,
             "casing_x": c[0],
             "casing_y": c[1],
             "casing_vx": c[2],

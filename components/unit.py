@@ -10,8 +10,11 @@ Contract of every unit:
 * parameters are declared once (:mod:`.parameters`) and validated when the
   unit is built; a bad value raises :class:`ParameterError` naming
   ``unit.parameter``;
-* inputs are held constant over a step (zero-order hold, as in FMI 2.0
-  co-simulation without input derivatives);
+* an input is a polynomial over a step: its value at the step's start,
+  plus optional first and second time derivatives set by the master
+  (:meth:`Unit.set_input_derivative`, FMI 2.0's ``fmi2SetRealInputDerivatives``);
+  setting a value clears its derivatives, so a plain ``set_input`` holds the
+  input constant (zero-order hold);
 * :meth:`Unit.do_step` either completes the step or raises :class:`StepError`
   with the unit's state left exactly as it was before the call;
 * :meth:`Unit.get_state` captures everything the next step depends on
@@ -86,6 +89,8 @@ class Unit:
     type_name: ClassVar[str]
     summary: ClassVar[str]
     protocol: ClassVar[str] = ""  # how a master drives its events, for FMU descriptions
+    # whether outputs depend on the inputs at the same instant (a master orders units by it)
+    feedthrough: ClassVar[bool] = True
     params_spec: ClassVar[tuple[Param, ...]]
     inputs: ClassVar[tuple[Signal, ...]]
     outputs: ClassVar[tuple[Signal, ...]]
@@ -95,6 +100,7 @@ class Unit:
         self.params = resolve(self.name, self.params_spec, params)
         self._check(self.params)
         self.u: dict[str, float] = {s.name: s.start for s in self.inputs}
+        self.du: dict[str, tuple[float, float]] = {}
         self.time = 0.0
         self.state: dict[str, Any] = self._initial_state()
 
@@ -125,6 +131,7 @@ class Unit:
     def reset(self, start_time: float = 0.0) -> None:
         """Back to the initial state at ``start_time``; inputs back to their start values."""
         self.u = {s.name: s.start for s in self.inputs}
+        self.du = {}
         self.time = float(start_time)
         self.state = self._initial_state()
 
@@ -134,6 +141,27 @@ class Unit:
             known = ", ".join(self.u)
             raise KeyError(f"{self.name}.{name} is not an input (inputs: {known})")
         self.u[name] = value
+        self.du.pop(name, None)
+
+    def set_input_derivative(self, name: str, order: int, value: float) -> None:
+        """Set the ``order``-th time derivative (1 or 2) of a real input at the start of
+        the next step, in the input's unit per second**order."""
+        if name not in self.u:
+            raise KeyError(f"{self.name}.{name} is not an input")
+        if order not in (1, 2):
+            raise ValueError(f"{self.name}.{name}: derivative order {order!r} is not 1 or 2")
+        if not math.isfinite(value):
+            raise ValueError(f"{self.name}.{name}: derivative {value!r} is not finite")
+        d1, d2 = self.du.get(name, (0.0, 0.0))
+        self.du[name] = (value, d2) if order == 1 else (d1, value)
+
+    def input_at(self, name: str, t: float) -> float:
+        """Value of an input at time ``t`` inside the current step (its polynomial)."""
+        d = self.du.get(name)
+        if d is None:
+            return self.u[name]
+        s = t - self.time
+        return self.u[name] + s * (d[0] + 0.5 * s * d[1])
 
     def set_inputs(self, values: Mapping[str, float]) -> None:
         for name, value in values.items():
@@ -171,6 +199,7 @@ class Unit:
         return {
             "time": self.time,
             "u": dict(self.u),
+            "du": {k: list(v) for k, v in self.du.items()},
             "state": {
                 k: (v.copy() if isinstance(v, np.ndarray) else v) for k, v in self.state.items()
             },
@@ -181,6 +210,7 @@ class Unit:
         try:
             self.time = float(snapshot["time"])
             self.u = dict(snapshot["u"])
+            self.du = {k: (float(v[0]), float(v[1])) for k, v in snapshot.get("du", {}).items()}
             self.state = {
                 k: (np.array(v, dtype=float) if isinstance(v, np.ndarray | list) else v)
                 for k, v in snapshot["state"].items()

@@ -8,9 +8,12 @@ Layout::
     [units.ROLE]          type = "...", then the unit's parameters (see rubcosim.components)
     [outputs]             record = ["rotor.x", ...]   (default: every output)
     [plots]               orbit = [X, Y], timeseries = [...], poincare = [X, Y]
+    [cosim]               co-simulation settings (rubcosim.orchestrator.settings.CosimSettings)
+    [connections]         "unit.input" = ["unit.output", ...] (summed); replaces the
+                          role-based default for that input, [] disconnects it
 
 ``--set role.name=value`` overrides any unit parameter (initial states
-included: ``rotor.x0``...) or setting (``sim.t_end``...).  Every error is a
+included: ``rotor.x0``...) or setting (``sim.t_end``, ``cosim.algorithm``...).  Every error is a
 :class:`ScenarioError` naming the file, the key and what is allowed.
 """
 
@@ -25,6 +28,8 @@ from typing import Any
 
 from rubcosim.components.catalog import UNIT_TYPES
 from rubcosim.components.parameters import ParameterError
+from rubcosim.orchestrator.connections import CouplingError
+from rubcosim.orchestrator.settings import CosimSettings, SettingsError, cosim_settings
 from rubcosim.reference.assemble import DEFAULT_CHATTER_TOL, System, build_system, make_unit
 from rubcosim.reference.simulate import ENGINES, MIN_RTOL
 
@@ -49,7 +54,7 @@ PLOT_KINDS = ("orbit", "timeseries", "poincare")
 SCENARIO_KEYS = ("name", "description")
 MAX_EVENTS_LIMIT = 10_000_000
 MAX_OUTPUT_POINTS = 10_000_000
-TOP_LEVEL = ("scenario", "sim", "units", "outputs", "plots")
+TOP_LEVEL = ("scenario", "sim", "units", "outputs", "plots", "cosim", "connections")
 
 
 @dataclass
@@ -63,6 +68,8 @@ class Scenario:
     system: System
     source: str = ""
     parameters: dict[str, Any] = field(default_factory=dict)
+    cosim: CosimSettings = field(default_factory=CosimSettings)
+    connections: dict[str, Any] = field(default_factory=dict)
 
     @property
     def outputs(self) -> list[str]:
@@ -179,9 +186,19 @@ def build_scenario(
                 f"units.{role}.type is required (one of {', '.join(UNIT_TYPES[role])})"
             )
     sim_raw = dict(_check_table("[sim]", data.get("sim", {})))
+    cosim_raw = dict(_check_table("[cosim]", data.get("cosim", {})))
+    connections: dict[str, Any] = {}
+    for key, value in _check_table("[connections]", data.get("connections", {})).items():
+        # an unquoted key rotor.fx = [...] is a nested table in TOML
+        if isinstance(value, dict):
+            connections.update({f"{key}.{k}": v for k, v in value.items()})
+        else:
+            connections[key] = value
     for text in overrides:
         role, name, value = parse_override(text)
-        if role == "sim":
+        if role == "cosim":
+            cosim_raw[name] = value
+        elif role == "sim":
             if name not in SIM_DEFAULTS:
                 raise ScenarioError(
                     f"--set sim.{name}: not a setting (known: {', '.join(SIM_DEFAULTS)})"
@@ -190,11 +207,15 @@ def build_scenario(
         elif role in units:
             units[role][name] = value
         else:
-            known = ", ".join(["sim", *units])
+            known = ", ".join(["sim", "cosim", *units])
             raise ScenarioError(
                 f"--set {role}.{name}: unit {role!r} is not in this scenario (known: {known})"
             )
     sim = _sim_settings(sim_raw)
+    try:
+        cosim = cosim_settings(cosim_raw)
+    except SettingsError as exc:
+        raise ScenarioError(str(exc)) from None
     try:
         built = {
             role: make_unit(role, t["type"], {k: v for k, v in t.items() if k != "type"})
@@ -242,7 +263,7 @@ def build_scenario(
     for role, u in system.units.items():
         parameters.update({f"{role}.{k}": v for k, v in u.params.items()})
     parameters.update({f"sim.{k}": v for k, v in sim.items()})
-    return Scenario(
+    scenario = Scenario(
         name=str(meta.get("name", Path(source).stem if source else "scenario")),
         description=str(meta.get("description", "")),
         sim=sim,
@@ -252,7 +273,17 @@ def build_scenario(
         system=system,
         source=source,
         parameters=parameters,
+        cosim=cosim,
+        connections=connections,
     )
+    if connections:
+        from rubcosim.orchestrator.assembly import scenario_connections
+
+        try:
+            scenario_connections(scenario)
+        except CouplingError as exc:
+            raise ScenarioError(str(exc)) from None
+    return scenario
 
 
 def load_scenario(path: str | Path, overrides: Iterable[str] = ()) -> Scenario:

@@ -279,12 +279,12 @@ def test_controller_force_follows_the_delayed_signal():
         unit.set_inputs({"x": 1e-5 * math.sin(w * t)})
         if t > tau + 3 * h:
             want = K * 1e-5 * (math.sin(w * (t - tau)) - math.sin(w * t))
-            worst = max(worst, abs(unit.get_outputs()["fx"] - want))
+            worst = max(worst, abs(unit.get_outputs()["ux"] - want))
     # cubic interpolation of samples 0.1 rad apart: error ~ (w h)^4 / 24 of K A
     assert worst < 1e-4 * K * 1e-5
     late = make_unit("controller", "delayed_feedback", gain=K, delay=tau, speed=0.0, t_on=1.0)
     late.set_inputs({"x": 1e-5})
-    assert late.get_outputs()["fx"] == 0.0
+    assert late.get_outputs()["ux"] == 0.0
 
 
 def test_base_delay_checks():

@@ -210,7 +210,7 @@ def _rotor_system(units: Mapping[str, Unit], chatter_tol: float) -> System:
                 p[S.P_MS] = s["mass"]
                 p[S.P_KS] = s["stiffness"]
                 p[S.P_CSC] = s["damping"]
-                names += ["stator.x", "stator.y", "stator.vx", "stator.vy"]
+                names += [f"stator.casing_{v}" for v in ("x", "y", "vx", "vy")]
                 y0 += [s["x0"], s["y0"], s["vx0"], s["vy0"]]
             cc = s["contact_damping"]
             p[S.P_CC] = (

@@ -457,7 +457,7 @@ def output_names(ip: np.ndarray) -> list[str]:
     if ip[IP_STATOR] != STATOR_NONE:
         names += ["stator.gap", "stator.normal_force", "stator.contact"]
     if ip[IP_CASING] >= 0:
-        names += ["stator.x", "stator.y", "stator.vx", "stator.vy"]
+        names += [f"stator.casing_{v}" for v in ("x", "y", "vx", "vy")]
     if ip[IP_BEARING] != BEARING_NONE:
         names += ["bearing.fx", "bearing.fy"]
     if ip[IP_CONTROL] != CONTROL_NONE:

@@ -1,0 +1,119 @@
+"""Connections between units: each input is the sum of zero or more outputs.
+
+Names are ``unit.signal``.  A scenario's ``[connections]`` table maps an input
+to a list of outputs (or one output); an empty list disconnects it.  Without
+a table, units are connected by their roles the way the monolithic
+reference couples them: the disc state goes to the stator and the
+controller, contact and control forces come back to the disc, the journal
+state goes to the bearing and its force comes back.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+
+
+class CouplingError(ValueError):
+    """A connection names an unknown unit or signal; the message names it."""
+
+
+@dataclass(frozen=True)
+class Connection:
+    """``target`` (``unit.input``) receives the sum of ``sources`` (``unit.output``)."""
+
+    target: str
+    sources: tuple[str, ...]
+
+    @property
+    def unit(self) -> str:
+        return self.target.split(".", 1)[0]
+
+    @property
+    def input(self) -> str:
+        return self.target.split(".", 1)[1]
+
+
+_DISC = ("x", "y", "vx", "vy")
+
+
+def default_connections(types: Mapping[str, str]) -> list[Connection]:
+    """Role-based connections for the units present (``role -> type``)."""
+    links: dict[str, list[str]] = {}
+    if "rotor" not in types:
+        return []
+    stator, controller, bearing = (types.get(r) for r in ("stator", "controller", "bearing"))
+    for role in ("stator", "controller"):
+        if types.get(role):
+            for s in _DISC:
+                links[f"{role}.{s}"] = [f"rotor.{s}"]
+    for axis, u in (("x", "ux"), ("y", "uy")):
+        force = []
+        if stator:
+            force.append(f"stator.f{axis}")
+        if controller:
+            force.append(f"controller.{u}")
+        if force:
+            links[f"rotor.f{axis}"] = force
+        if stator == "rigid":
+            others = [f"rotor.force_{axis}"] + ([f"controller.{u}"] if controller else [])
+            links[f"stator.other_f{axis}"] = others
+        if bearing:
+            links[f"rotor.journal_f{axis}"] = [f"bearing.f{axis}"]
+    if bearing:
+        for s in _DISC:
+            links[f"bearing.{s}"] = [f"rotor.journal_{s}"]
+    return [Connection(t, tuple(s)) for t, s in links.items()]
+
+
+def _split(name: str, where: str) -> tuple[str, str]:
+    if not isinstance(name, str) or name.count(".") != 1 or not all(name.split(".")):
+        raise CouplingError(f"{where}: {name!r} is not of the form unit.signal")
+    unit, signal = name.split(".")
+    return unit, signal
+
+
+def apply_table(connections: Sequence[Connection], table: Mapping[str, object]) -> list[Connection]:
+    """Replace or add the connections named in a ``[connections]`` table."""
+    merged = {c.target: c for c in connections}
+    for target, value in table.items():
+        _split(target, "connections")
+        sources = [value] if isinstance(value, str) else value
+        if not isinstance(sources, list) or not all(isinstance(s, str) for s in sources):
+            raise CouplingError(
+                f"connections.{target} must be an output name or a list of output names"
+            )
+        for s in sources:
+            _split(s, f"connections.{target}")
+        merged[target] = Connection(target, tuple(sources))
+    return [c for c in merged.values() if c.sources]
+
+
+def check_connections(
+    connections: Sequence[Connection],
+    inputs: Mapping[str, Sequence[str]],
+    outputs: Mapping[str, Sequence[str]],
+) -> None:
+    """Every target must be an input and every source an output of a unit present."""
+    for c in connections:
+        unit, signal = _split(c.target, "connections")
+        if unit not in inputs:
+            raise CouplingError(
+                f"connections.{c.target}: no unit {unit!r} (units: {', '.join(inputs)})"
+            )
+        if signal not in inputs[unit]:
+            raise CouplingError(
+                f"connections.{c.target}: {signal!r} is not an input of {unit} "
+                f"(inputs: {', '.join(inputs[unit])})"
+            )
+        for s in c.sources:
+            su, ss = _split(s, f"connections.{c.target}")
+            if su not in outputs:
+                raise CouplingError(
+                    f"connections.{c.target}: source unit {su!r} is not in the scenario"
+                )
+            if ss not in outputs[su]:
+                raise CouplingError(
+                    f"connections.{c.target}: {ss!r} is not an output of {su} "
+                    f"(outputs: {', '.join(outputs[su])})"
+                )

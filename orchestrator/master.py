@@ -1,0 +1,551 @@
+"""The co-simulation master: steps coupled units, controls the macro step, handles events.
+
+One algorithm, two coupling orders: Gauss-Seidel (a unit sees the outputs its
+sources produced in the same step, interpolated) or Jacobi (every unit sees
+its inputs extrapolated from the previous communication points).  Inputs are
+polynomials of order 0, 1 or 2 over the step (:mod:`.extrapolation`); units
+that cannot take input derivatives (an FMU without ``canInterpolateInputs``)
+hold them constant.
+
+Per macro step ``[t, t + h]``:
+
+1. a snapshot of every unit is taken when the step may have to be undone:
+   error control or iteration is on, or an event indicator is predicted to
+   cross within the step (:func:`.events.predicted_to_cross`); otherwise
+   only a checkpoint every ``CHECKPOINT_EVERY`` steps, from which the master
+   replays (deterministically) if an indicator crossed unannounced;
+2. the units are stepped in order, then every input is set to the value its
+   sources now give (``settle``); the difference between what a unit was
+   given for ``t + h`` and what its sources gave is the coupling error;
+3. with error control, a step whose error norm exceeds 1 is undone and
+   retried smaller (PI controller, :mod:`.step_control`);
+4. the event protocols' indicators are checked for a crossing; one is
+   located by re-running the step onto trial times (:func:`.events.locate`),
+   the step is cut there, the protocol acts (a velocity reset, a contact
+   mode) and the extrapolation restarts from the new values.
+
+Nothing here knows any physics: forces, gaps and impact laws are the units'.
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+import time
+from collections import Counter, deque
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from rubcosim.components.unit import StepError
+
+from .connections import Connection
+from .events import Indicator, crossing, locate, predicted_to_cross
+from .extrapolation import evaluate, polynomial
+from .protocols import EventProtocol
+from .settings import CosimSettings
+from .step_control import PIController
+
+CHECKPOINT_EVERY = 64
+
+
+class CosimError(RuntimeError):
+    """The co-simulation cannot go on; the message names the unit and the time."""
+
+
+@dataclass
+class CosimResult:
+    """Recorded outputs on the output grid, the events and the master's counters."""
+
+    t: np.ndarray
+    names: list[str]
+    values: np.ndarray  # (len(t), len(names))
+    event_t: np.ndarray
+    event_kind: list[str]
+    event_unit: list[str]
+    counters: dict[str, int]
+    status: str
+    message: str
+    t_reached: float
+    wall_time_s: float
+    settings: CosimSettings
+    input_orders: dict[str, int] = field(default_factory=dict)
+
+    @property
+    def ok(self) -> bool:
+        return self.status == "ok"
+
+    def output(self, name: str) -> np.ndarray:
+        try:
+            return self.values[:, self.names.index(name)]
+        except ValueError:
+            raise KeyError(
+                f"{name!r} was not recorded (recorded: {', '.join(self.names)})"
+            ) from None
+
+    def events_of_kind(self, kind: str) -> np.ndarray:
+        return self.event_t[[k == kind for k in self.event_kind]]
+
+
+def evaluation_order(
+    names: Sequence[str], connections: Sequence[Connection], feedthrough: Mapping[str, bool]
+) -> list[str]:
+    """Units whose outputs do not depend on their inputs first, then the others after
+    every unit they read from (a direct-feedthrough cycle is an algebraic loop)."""
+    deps = {n: set() for n in names}
+    for c in connections:
+        for s in c.sources:
+            src = s.split(".", 1)[0]
+            if feedthrough[c.unit] and feedthrough[src] and src != c.unit:
+                deps[c.unit].add(src)
+    order = [n for n in names if not feedthrough[n]]
+    pending = [n for n in names if feedthrough[n]]
+    while pending:
+        ready = [n for n in pending if deps[n] <= set(order)]
+        if not ready:
+            raise CosimError(f"algebraic loop between units {', '.join(pending)}")
+        order += ready
+        pending = [n for n in pending if n not in ready]
+    return order
+
+
+class Master:
+    """Runs coupled units from ``t_start`` to ``t_end``.
+
+    ``units`` maps a name to a unit (a :class:`rubcosim.components.unit.Unit` or an
+    :class:`.fmu_unit.FmuUnit`); ``feedthrough[name]`` says whether its outputs
+    depend on its inputs at the same instant; ``interpolates[name]`` whether it
+    takes input derivatives.  ``period`` (s) scales the default steps and the
+    event tolerance.
+    """
+
+    def __init__(
+        self,
+        units: Mapping[str, Any],
+        connections: Sequence[Connection],
+        settings: CosimSettings,
+        period: float,
+        feedthrough: Mapping[str, bool],
+        interpolates: Mapping[str, bool],
+        protocols: Sequence[EventProtocol] = (),
+    ) -> None:
+        self.units = dict(units)
+        self.settings = settings.with_defaults(period)
+        self.period = period
+        self.connections = list(connections)
+        self.protocols = list(protocols)
+        self.feedthrough = dict(feedthrough)
+        self.eval_order = evaluation_order(list(self.units), self.connections, feedthrough)
+        order = list(self.settings.order) or self.eval_order
+        if sorted(order) != sorted(self.units):
+            raise CosimError(
+                f"cosim.order = {order} must name every unit once ({', '.join(self.units)})"
+            )
+        self.order = order
+        self.targets_of: dict[str, list[Connection]] = {n: [] for n in self.units}
+        for c in self.connections:
+            self.targets_of[c.unit].append(c)
+        self.source_units = {c.target: {s.split(".", 1)[0] for s in c.sources} for c in connections}
+        p = self.settings.extrapolation
+        self.input_orders = {n: (p if interpolates[n] else 0) for n in self.units}
+        self.gauss_seidel = self.settings.algorithm == "gauss-seidel"
+        self.t_tol = self.settings.event_tol * period
+        self.counters: Counter[str] = Counter()
+        self.time = 0.0
+        self.out: dict[str, dict[str, Any]] = {}
+        self._last_round: tuple[float, dict, dict] | None = None
+
+    # --- what protocols may call --------------------------------------------------------
+    def set_event_input(self, unit: str, name: str, value: float) -> None:
+        self.units[unit].set_input(name, value)
+
+    def apply_now(self, unit: str) -> None:
+        """A zero-length step: the unit applies what was just set (a reset) at once."""
+        self.units[unit].do_step(self.time, 0.0)
+
+    def settle(self) -> dict[str, float]:
+        """Set every connected input from its sources' current outputs and refresh every
+        unit's outputs; returns the input values.
+
+        Units with direct feedthrough come in dependency order, so their sources are
+        fresh; the others read from units later in the order, so their inputs are set
+        once more at the end (their outputs do not depend on them).
+        """
+        real: dict[str, float] = {}
+        for name in self.eval_order:
+            if name not in self.out:
+                self.out[name] = self.units[name].get_outputs()
+        for late in (False, True):
+            for name in self.eval_order:
+                if late and self.feedthrough[name]:
+                    continue
+                unit = self.units[name]
+                for c in self.targets_of[name]:
+                    value = self._sum(c)
+                    real[c.target] = value
+                    unit.set_input(c.input, value)
+                if not late:
+                    self.out[name] = unit.get_outputs()
+        return real
+
+    # --- one step ----------------------------------------------------------------------------
+    def _sum(self, c: Connection) -> float:
+        total = 0.0
+        for s in c.sources:
+            unit, name = s.split(".", 1)
+            total += self.out[unit][name]
+        return total
+
+    def _polynomial(self, c: Connection, t: float, h: float, end: float | None, order: int):
+        pts = self.hist[c.target]
+        if end is None:
+            use = pts[-(order + 1) :]
+        else:
+            use = (pts[-order:] if order else []) + [(t + h, end)]
+        return polynomial(use, t)
+
+    def _round(self, t: float, h: float, ends: Mapping[str, float] | None = None):
+        """Step every unit from ``t`` to ``t + h``; returns the input values the units
+        were given for ``t + h`` and the values their sources gave there."""
+        stepped: set[str] = set()
+        given: dict[str, float] = {}
+        for name in self.order:
+            unit = self.units[name]
+            order = self.input_orders[name]
+            for c in self.targets_of[name]:
+                end = ends.get(c.target) if ends is not None else None
+                if end is None and self.gauss_seidel and self.source_units[c.target] <= stepped:
+                    end = self._sum(c)
+                v, d1, d2 = self._polynomial(c, t, h, end, order)
+                unit.set_input(c.input, v)
+                if order >= 1:
+                    unit.set_input_derivative(c.input, 1, d1)
+                if order >= 2:
+                    unit.set_input_derivative(c.input, 2, d2)
+                given[c.target] = evaluate(v, d1, d2, h) if order else v
+            unit.do_step(t, h)
+            self.counters["unit_steps"] += 1
+            stepped.add(name)
+            for c in self.targets_of[name]:
+                unit.set_input(c.input, given[c.target])
+            self.out[name] = unit.get_outputs()
+        self.time = t + h
+        real = self.settle()
+        self._last_round = (t + h, given, real)
+        return given, real
+
+    def _error(self, given: Mapping[str, float], real: Mapping[str, float], tol: float) -> float:
+        err = 0.0
+        for key, r in real.items():
+            g = given[key]
+            scale = max(self.scale[key], abs(r), abs(g))
+            if g != r:
+                err = max(err, abs(g - r) / (tol * scale))
+        return err
+
+    def _step(self, t: float, h: float, snap: Any):
+        given, real = self._round(t, h)
+        err = self._error(given, real, self.settings.rtol)
+        for _ in range(1, self.settings.iterations):
+            if self._error(given, real, self.settings.iteration_tol) <= 1.0:
+                break
+            self._restore(snap)
+            given, real = self._round(t, h, ends=real)
+            self.counters["iterations"] += 1
+        return given, real, err
+
+    # --- snapshots -------------------------------------------------------------------------
+    def _snapshot(self) -> dict[str, Any]:
+        self.counters["snapshots"] += 1
+        return {name: unit.get_state() for name, unit in self.units.items()}
+
+    def _restore(self, snap: Mapping[str, Any]) -> None:
+        for name, unit in self.units.items():
+            unit.set_state(snap[name])
+
+    def _free(self, snap: Mapping[str, Any] | None) -> None:
+        if snap is None:
+            return
+        for name, unit in self.units.items():
+            free = getattr(unit, "free_state", None)
+            if free is not None:
+                free(snap[name])
+
+    def _master_state(self) -> dict[str, Any]:
+        return copy.deepcopy(
+            {
+                "time": self.time,
+                "h": self.h,
+                "err_prev": self.pi.err_prev,
+                "hist": self.hist,
+                "scale": self.scale,
+                "accel": self.accel,
+                "out": self.out,
+                "protocols": [p.state for p in self.protocols],
+                "rows": len(self.rows),
+                "events": len(self.events),
+                "k_out": self.k_out,
+                "recent": list(self.recent_events),
+            }
+        )
+
+    def _set_master_state(self, s: dict[str, Any]) -> None:
+        s = copy.deepcopy(s)
+        self.time, self.h, self.pi.err_prev = s["time"], s["h"], s["err_prev"]
+        self.hist, self.scale, self.accel, self.out = s["hist"], s["scale"], s["accel"], s["out"]
+        for p, state in zip(self.protocols, s["protocols"], strict=True):
+            p.state = state
+        del self.rows[s["rows"] :]
+        del self.events[s["events"] :]
+        self.k_out = s["k_out"]
+        self.recent_events = deque(s["recent"])
+
+    # --- events ----------------------------------------------------------------------------
+    def _indicators(self) -> list[tuple[Indicator, EventProtocol]]:
+        if self.settings.events == "off":
+            return []
+        return [(ind, p) for p in self.protocols for ind in p.indicators(self)]
+
+    def _value(self, ind: Indicator) -> tuple[float, float]:
+        out = self.out[ind.unit]
+        return out[ind.output], (out[ind.rate] if ind.rate else 0.0)
+
+    def _may_cross(self, inds, h: float) -> bool:
+        for ind, _ in inds:
+            if ind.rate is None:
+                return True  # no rate to predict from: always be ready to roll back
+            g, r = self._value(ind)
+            key = (ind.unit, ind.output)
+            if key not in self.accel or predicted_to_cross(ind, g, r, self.accel[key], h):
+                return True
+        return False
+
+    def _learn_rates(self, before: Mapping, h: float) -> None:
+        """Running bound on the second derivative of every indicator that has a rate."""
+        for (unit, output, rate), (_, r0) in before.items():
+            if rate is None:
+                continue
+            r1 = self.out[unit][rate]
+            key = (unit, output)
+            self.accel[key] = max(self.accel.get(key, 0.0), abs(r1 - r0) / h)
+
+    def _first_crossing(self, inds, before: Mapping, t: float, h: float):
+        """The indicator whose crossing inside ``[t, t + h]`` comes first, as
+        ``(estimated offset, bracket, indicator, protocol)``, or None."""
+        best = None
+        for ind, proto in inds:
+            ga, ra = before[(ind.unit, ind.output, ind.rate)]
+            gb, rb = self._value(ind)
+            bracket = crossing(ind, ga, gb, h, ra, rb)
+            if bracket is None:
+                continue
+            est = bracket[0] if bracket[0] > 0.0 else _secant_offset(ga, gb, bracket[1])
+            if best is None or est < best[0]:
+                best = (est, bracket, ind, proto)
+        return best
+
+    # --- the run ---------------------------------------------------------------------------
+    def run(
+        self, t_start: float, t_end: float, output_times: np.ndarray, record: Sequence[str]
+    ) -> CosimResult:
+        """Co-simulate from ``t_start`` to ``t_end`` recording ``record`` (``unit.output``)
+        at ``output_times``; a failure ends the run early with ``status = "failed"``."""
+        wall = time.perf_counter()
+        st = self.settings
+        self.time = float(t_start)
+        self.h = st.step
+        p = st.extrapolation if st.adaptive else 0
+        self.pi = PIController(order=p + 1)
+        self.accel: dict[tuple[str, str], float] = {}
+        self.rows: list[list[float]] = []
+        self.events: list[tuple[float, str, str]] = []
+        self.recent_events: deque[float] = deque()
+        self.record = [tuple(n.split(".", 1)) for n in record]
+        self.output_times = np.asarray(output_times, dtype=float)
+        self.k_out = 0
+        status, message = "ok", ""
+        try:
+            real = self.settle()
+            self.hist = {k: [(self.time, v)] for k, v in real.items()}
+            self.scale = {k: abs(v) for k, v in real.items()}
+            self._record_due()
+            self._loop(t_end)
+        except (CosimError, StepError) as exc:
+            status, message = "failed", str(exc)
+        n = len(self.output_times[: len(self.rows)])
+        values = np.array(self.rows, dtype=float).reshape(n, len(self.record))
+        return CosimResult(
+            t=self.output_times[:n].copy(),
+            names=[".".join(r) for r in self.record],
+            values=values,
+            event_t=np.array([e[0] for e in self.events]),
+            event_kind=[e[1] for e in self.events],
+            event_unit=[e[2] for e in self.events],
+            counters=dict(self.counters),
+            status=status,
+            message=message,
+            t_reached=self.time,
+            wall_time_s=time.perf_counter() - wall,
+            settings=st,
+            input_orders=dict(self.input_orders),
+        )
+
+    def _record_due(self) -> None:
+        tol = 1e-9 * self.settings.min_step
+        while (
+            self.k_out < len(self.output_times) and self.output_times[self.k_out] <= self.time + tol
+        ):
+            self.rows.append([float(self.out[u][o]) for u, o in self.record])
+            self.k_out += 1
+
+    def _loop(self, t_end: float) -> None:
+        st = self.settings
+        checkpoint = (self._snapshot(), self._master_state())
+        since_checkpoint = 0
+        snap_until = -math.inf
+        while self.time < t_end:
+            t = self.time
+            target = t_end
+            if self.k_out < len(self.output_times):
+                target = min(target, self.output_times[self.k_out])
+            h_nominal = min(self.h, st.max_step)
+            h = h_nominal
+            if t + h >= target - 1e-9 * h:
+                h = target - t
+            inds = self._indicators()
+            snap = None
+            if st.adaptive or st.iterations > 1 or t < snap_until or self._may_cross(inds, h):
+                snap = self._snapshot()
+            elif since_checkpoint >= CHECKPOINT_EVERY:
+                self._free(checkpoint[0])
+                checkpoint = (self._snapshot(), self._master_state())
+                since_checkpoint = 0
+            before = {(i.unit, i.output, i.rate): self._value(i) for i, _ in inds}
+            self.counters["steps"] += 1
+            try:
+                given, real, err = self._step(t, h, snap)
+            except StepError as exc:
+                if snap is None or h <= st.min_step:
+                    raise CosimError(f"{exc} (macro step {h:.3g} s)") from exc
+                self._restore(snap)
+                self._set_time(t)
+                self._free(snap)
+                self.counters["rejected"] += 1
+                self.h = h / 4.0
+                continue
+            if st.adaptive and err > 1.0 and h > st.min_step:
+                self._restore(snap)
+                self._set_time(t)
+                self._free(snap)
+                self.counters["rejected"] += 1
+                self.h = max(self.pi.reject(h, err), st.min_step)
+                continue
+            hit = self._first_crossing(inds, before, t, h) if inds else None
+            if hit is not None and snap is None and st.events == "locate":
+                # an unannounced crossing: replay deterministically from the checkpoint
+                self._restore(checkpoint[0])
+                self._set_master_state(checkpoint[1])
+                snap_until = t + h
+                self.counters["replays"] += 1
+                continue
+            if hit is not None and st.events == "locate":
+                h, given, real = self._locate(hit, before, t, h, snap)
+                if h is None:  # an interior extremum that did not reach zero after all
+                    hit = None
+                    given, real = self._redo(t, self._full_h, snap)
+                    h = self._full_h
+            elif hit is not None and hit[1] != (0.0, h):
+                hit = None  # a plain master only sees sign changes at communication points
+            self._accept(t, h, given, real, before)
+            if st.adaptive and hit is None and h >= 0.5 * h_nominal:
+                self.h = min(self.pi.accept(h_nominal, err), st.max_step)
+            self._free(snap)
+            since_checkpoint += 1
+            if hit is not None:
+                self._event(hit[2], hit[3])
+            self._check_finite()
+            self._record_due()
+        self._free(checkpoint[0])
+
+    def _set_time(self, t: float) -> None:
+        self.time = t
+        for name, unit in self.units.items():
+            self.out[name] = unit.get_outputs()
+
+    def _redo(self, t: float, h: float, snap: Any):
+        self._restore(snap)
+        given, real, _ = self._step(t, h, snap)
+        return given, real
+
+    def _locate(self, hit, before, t: float, h: float, snap: Any):
+        """Cut the step at the first crossing; returns (h, given, real) with the units
+        there, or Nones when a predicted interior crossing is not confirmed."""
+        _, (lo, hi), ind, _ = hit
+        self._full_h = h
+        last = [math.nan]
+
+        def probe(tq: float) -> tuple[float, float]:
+            self._restore(snap)
+            self._step(t, tq - t, snap)
+            last[0] = tq
+            self.counters["event_probes"] += 1
+            return self._value(ind)
+
+        sign = -1.0 if ind.direction < 0 else 1.0
+        ga, ra = before[(ind.unit, ind.output, ind.rate)]
+        if lo > 0.0:
+            ga, ra = probe(t + lo)
+            if sign * ga >= 0.0:
+                return None, None, None
+        if hi < h:
+            gb, rb = probe(t + hi)
+            if sign * gb < 0.0:
+                return None, None, None
+        else:
+            gb, rb = self._value(ind)
+        t_ev, _ = locate(probe, ind, t + lo, ga, ra, t + hi, gb, rb, self.t_tol)
+        if last[0] != t_ev:
+            probe(t_ev)
+        _, given, real = self._last_round
+        return t_ev - t, given, real
+
+    def _accept(self, t: float, h: float, given, real, before) -> None:
+        self.time = t + h
+        for key, value in real.items():
+            pts = self.hist[key]
+            pts.append((self.time, value))
+            if len(pts) > 3:
+                del pts[0]
+            self.scale[key] = max(self.scale[key], abs(value))
+        if h > 0.0:
+            self._learn_rates(before, h)
+        self.counters["accepted"] += 1
+
+    def _event(self, ind: Indicator, proto: EventProtocol) -> None:
+        kind = proto.handle(self, ind)
+        self.events.append((self.time, kind, ind.unit))
+        self.counters["events"] += 1
+        self.counters[f"events_{kind}"] += 1
+        real = self.settle()
+        self.hist = {k: [(self.time, v)] for k, v in real.items()}
+        self.pi.restart()
+        self.recent_events.append(self.time)
+        while self.recent_events and self.recent_events[0] < self.time - self.period:
+            self.recent_events.popleft()
+        if len(self.recent_events) > self.settings.max_events_per_period:
+            raise CosimError(
+                f"{ind.unit}: more than {self.settings.max_events_per_period} events within one "
+                f"forcing period before t = {self.time:.9g} s (cosim.max_events_per_period)"
+            )
+
+    def _check_finite(self) -> None:
+        for name, out in self.out.items():
+            for key, value in out.items():
+                if not math.isfinite(value):
+                    raise CosimError(f"{name}.{key} = {value} at t = {self.time:.9g} s")
+
+
+def _secant_offset(ga: float, gb: float, h: float) -> float:
+    return h * ga / (ga - gb) if ga != gb else h

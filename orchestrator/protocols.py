@@ -1,0 +1,129 @@
+"""Event protocols: which indicators the master watches and what an event does.
+
+A protocol looks at the units through the master (their latest outputs) and
+acts on them only through inputs the connections do not drive: the rotor's
+velocity reset and the rigid stator's contact mode.  Its own state (contact
+mode, reset counter, last impact) is saved and restored with the master's.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any, Protocol
+
+from rubcosim.components.stator_unit import MODE_FREE, MODE_SLIDE_NEG, MODE_SLIDE_POS, MODE_STICK
+
+from .events import Indicator
+
+
+class MasterView(Protocol):
+    out: dict[str, dict[str, Any]]
+    time: float
+
+    def set_event_input(self, unit: str, name: str, value: float) -> None: ...
+
+    def apply_now(self, unit: str) -> None: ...
+
+    def settle(self) -> None: ...
+
+
+class EventProtocol:
+    """Base: no indicators, no state."""
+
+    state: dict[str, Any]
+
+    def indicators(self, master: MasterView) -> list[Indicator]:
+        return []
+
+    def handle(self, master: MasterView, ind: Indicator) -> str:
+        raise NotImplementedError
+
+
+class RigidContact(EventProtocol):
+    """A rotor against a rigid stator: impacts through the velocity reset, then,
+    when the rebounds die out (chattering), sustained sliding or sticking contact
+    held by the stator's constraint force, and release when it falls to zero.
+
+    ``v_chat`` (m/s): a rebound slower than this ends chattering.  ``min_flight``
+    (s): impacts closer together than this also end it, so an accumulation of
+    impacts never stalls the master.
+    """
+
+    def __init__(self, stator: str, rotor: str, v_chat: float, min_flight: float) -> None:
+        self.stator, self.rotor = stator, rotor
+        self.v_chat, self.min_flight = v_chat, min_flight
+        self.state = {"mode": MODE_FREE, "counter": 0, "last_impact": -math.inf}
+
+    def indicators(self, master: MasterView) -> list[Indicator]:
+        s, mode = self.stator, self.state["mode"]
+        if mode == MODE_FREE:
+            return [Indicator(s, "gap", -1, "impact", rate="gap_rate")]
+        release = Indicator(s, "normal_force", -1, "release")
+        if mode == MODE_STICK:
+            return [release, Indicator(s, "hold_margin", -1, "slip")]
+        return [release, Indicator(s, "slip", -1 if mode == MODE_SLIDE_POS else 1, "slip")]
+
+    def _set_mode(self, master: MasterView, mode: int) -> None:
+        self.state["mode"] = mode
+        master.set_event_input(self.stator, "contact_mode", mode)
+        master.settle()
+
+    def handle(self, master: MasterView, ind: Indicator) -> str:
+        if ind.kind == "impact":
+            return self._impact(master)
+        if ind.kind == "release":
+            self._set_mode(master, MODE_FREE)
+            return "release"
+        self._settle_contact(master, slipping_from=self.state["mode"])
+        return "slip"
+
+    def _impact(self, master: MasterView) -> str:
+        out = master.out[self.stator]
+        self.state["counter"] += 1
+        master.set_event_input(self.rotor, "reset_vx", out["vx_plus"])
+        master.set_event_input(self.rotor, "reset_vy", out["vy_plus"])
+        master.set_event_input(self.rotor, "reset_counter", self.state["counter"])
+        master.apply_now(self.rotor)
+        master.settle()
+        flight = master.time - self.state["last_impact"]
+        self.state["last_impact"] = master.time
+        if master.out[self.stator]["gap_rate"] < self.v_chat or flight < self.min_flight:
+            # chattering has ended: the disc stays on the stator if it is pressed onto it
+            self._settle_contact(master, slipping_from=MODE_FREE)
+        return "impact"
+
+    def _settle_contact(self, master: MasterView, slipping_from: int) -> None:
+        """Sliding with the sign of the slip, or sticking when the slip is zero and
+        friction can hold it; free when nothing presses the disc onto the stator."""
+        if slipping_from == MODE_STICK:
+            # friction can no longer hold: slide against the holding force's direction
+            hold = master.out[self.stator]["hold_force"]
+            self._set_mode(master, MODE_SLIDE_NEG if hold > 0.0 else MODE_SLIDE_POS)
+        elif slipping_from != MODE_FREE or abs(master.out[self.stator]["slip"]) <= self.v_chat:
+            self._set_mode(master, MODE_STICK)
+            out = master.out[self.stator]
+            slide = MODE_SLIDE_NEG if out["hold_force"] > 0.0 else MODE_SLIDE_POS
+            if out["hold_margin"] < 0.0 and slide != slipping_from:
+                self._set_mode(master, slide)
+        else:
+            slip = master.out[self.stator]["slip"]
+            self._set_mode(master, MODE_SLIDE_POS if slip > 0.0 else MODE_SLIDE_NEG)
+        if master.out[self.stator]["normal_force"] <= 0.0:
+            self._set_mode(master, MODE_FREE)
+
+
+class ElasticContact(EventProtocol):
+    """A penalty stator: the master steps onto contact onset and release, where the
+    contact force has a kink, and restarts its extrapolation there."""
+
+    def __init__(self, stator: str) -> None:
+        self.stator = stator
+        self.state = {}
+
+    def indicators(self, master: MasterView) -> list[Indicator]:
+        if master.out[self.stator]["gap"] > 0.0:
+            return [Indicator(self.stator, "gap", -1, "contact_on", rate="gap_rate")]
+        return [Indicator(self.stator, "gap", 1, "contact_off", rate="gap_rate")]
+
+    def handle(self, master: MasterView, ind: Indicator) -> str:
+        return ind.kind
