@@ -43,6 +43,8 @@ class DelayedFeedbackUnit(Unit):
 
     role = "controller"
     type_name = "delayed_feedback"
+    # a zero-length step records the signal's left limit before a jump (see _advance)
+    records_left_limits = True
     summary = "delayed-feedback (Pyragas) controller, fixed or modulated delay"
     params_spec = (*CONTROLLER_PARAMS, SPEED)
     inputs = planar_motion("disc")
@@ -71,9 +73,12 @@ class DelayedFeedbackUnit(Unit):
     def _advance(self, t: float, h: float) -> None:
         hist = self.state["history"]
         zx, zy = self._signal()
-        if hist.shape[0] and hist[-1, 0] >= t:
-            # a step repeated from the same time (the master restored us): keep the newest sample
-            hist = hist[hist[:, 0] < t]
+        if hist.shape[0] and hist[-1, 0] > t:
+            hist = hist[hist[:, 0] <= t]  # stepped again from an earlier time: forget the future
+        # Two samples at one time mark a jump: a zero-length step recorded the signal just
+        # before an impact reset it.  Both stay, and no interpolation stencil spans them.
+        if hist.shape[0] and hist[-1, 0] == t and hist[-1, 1] == zx and hist[-1, 2] == zy:
+            hist = hist[:-1]
         keep = t + h - self.tau0 - self.params["modulation_amplitude"]
         # keep three samples before the oldest time still needed, for the stencil
         first = max(int(np.searchsorted(hist[:, 0], keep)) - 3, 0)
@@ -85,9 +90,16 @@ class DelayedFeedbackUnit(Unit):
         samples = np.vstack((hist[hist[:, 0] < self.time], [[self.time, zx, zy]]))
         if tq <= samples[0, 0]:
             return samples[0, 1], samples[0, 2]
-        i = int(np.searchsorted(samples[:, 0], tq))  # samples[i-1, 0] < tq <= samples[i, 0]
-        lo = max(min(i - 2, samples.shape[0] - 4), 0)
-        window = samples[lo : lo + 4]
+        ts = samples[:, 0]
+        # the continuous piece holding tq: between jumps (two samples at one time)
+        jumps = np.flatnonzero(ts[1:] == ts[:-1]) + 1
+        k = int(np.searchsorted(jumps, int(np.searchsorted(ts, tq, side="right")), side="right"))
+        start = jumps[k - 1] if k > 0 else 0
+        stop = jumps[k] if k < jumps.size else ts.size
+        piece = samples[start:stop]
+        i = int(np.searchsorted(piece[:, 0], tq))
+        lo = max(min(i - 2, piece.shape[0] - 4), 0)
+        window = piece[lo : lo + 4]
         z = lagrange_cubic(window[:, 0], window[:, 1:], tq)
         return z[0], z[1]
 

@@ -91,6 +91,8 @@ class Unit:
     protocol: ClassVar[str] = ""  # how a master drives its events, for FMU descriptions
     # whether outputs depend on the inputs at the same instant (a master orders units by it)
     feedthrough: ClassVar[bool] = True
+    # whether a zero-length step just before an event records the inputs' left limits
+    records_left_limits: ClassVar[bool] = False
     params_spec: ClassVar[tuple[Param, ...]]
     inputs: ClassVar[tuple[Signal, ...]]
     outputs: ClassVar[tuple[Signal, ...]]

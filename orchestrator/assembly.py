@@ -170,6 +170,7 @@ def run_cosim(
     if times is None:
         times = output_times(scenario)[0]
     connections = scenario_connections(scenario)
+    types = {role: u.type for role, u in scenario.system.units.items()}
     period = scenario.system.forcing_period
     if not math.isfinite(period) or period <= 0.0:
         raise ValueError("the scenario has no forcing period to scale the macro step by")
@@ -182,6 +183,7 @@ def run_cosim(
             feedthrough,
             interpolates,
             scenario_protocols(scenario, settings),
+            [r for r, t in types.items() if unit_class(r, t).records_left_limits],
         )
         return master.run(
             scenario.sim["t_start"], scenario.sim["t_end"], times, record or scenario.outputs

@@ -77,6 +77,10 @@ class CosimResult:
     def ok(self) -> bool:
         return self.status == "ok"
 
+    @property
+    def engine(self) -> str:
+        return f"cosim-{self.settings.backend}"
+
     def output(self, name: str) -> np.ndarray:
         try:
             return self.values[:, self.names.index(name)]
@@ -130,12 +134,14 @@ class Master:
         feedthrough: Mapping[str, bool],
         interpolates: Mapping[str, bool],
         protocols: Sequence[EventProtocol] = (),
+        left_limits: Sequence[str] = (),
     ) -> None:
         self.units = dict(units)
         self.settings = settings.with_defaults(period)
         self.period = period
         self.connections = list(connections)
         self.protocols = list(protocols)
+        self.left_limit_units = list(left_limits)
         self.feedthrough = dict(feedthrough)
         self.eval_order = evaluation_order(list(self.units), self.connections, feedthrough)
         order = list(self.settings.order) or self.eval_order
@@ -465,6 +471,11 @@ class Master:
             since_checkpoint += 1
             if hit is not None:
                 self._event(hit[2], hit[3])
+            for proto in self.protocols if st.events != "off" else ():
+                late = proto.overdue(self)
+                if late is not None:
+                    self.counters["late_events"] += 1
+                    self._event(late, proto)
             self._check_finite()
             self._record_due()
         self._free(checkpoint[0])
@@ -524,6 +535,8 @@ class Master:
         self.counters["accepted"] += 1
 
     def _event(self, ind: Indicator, proto: EventProtocol) -> None:
+        for name in self.left_limit_units:
+            self.units[name].do_step(self.time, 0.0)  # it keeps the pre-event inputs
         kind = proto.handle(self, ind)
         self.events.append((self.time, kind, ind.unit))
         self.counters["events"] += 1

@@ -38,6 +38,11 @@ class EventProtocol:
     def handle(self, master: MasterView, ind: Indicator) -> str:
         raise NotImplementedError
 
+    def overdue(self, master: MasterView) -> Indicator | None:
+        """An event that should already have happened (a crossing too small to resolve),
+        to be handled now; None when all is well."""
+        return None
+
 
 class RigidContact(EventProtocol):
     """A rotor against a rigid stator: impacts through the velocity reset, then,
@@ -52,7 +57,7 @@ class RigidContact(EventProtocol):
     def __init__(self, stator: str, rotor: str, v_chat: float, min_flight: float) -> None:
         self.stator, self.rotor = stator, rotor
         self.v_chat, self.min_flight = v_chat, min_flight
-        self.state = {"mode": MODE_FREE, "counter": 0, "last_impact": -math.inf}
+        self.state = {"mode": MODE_FREE, "counter": 0, "last_impact": -math.inf, "scale": 0.0}
 
     def indicators(self, master: MasterView) -> list[Indicator]:
         s, mode = self.stator, self.state["mode"]
@@ -62,6 +67,19 @@ class RigidContact(EventProtocol):
         if mode == MODE_STICK:
             return [release, Indicator(s, "hold_margin", -1, "slip")]
         return [release, Indicator(s, "slip", -1 if mode == MODE_SLIDE_POS else 1, "slip")]
+
+    def overdue(self, master: MasterView) -> Indicator | None:
+        """A disc found inside the stator, still approaching, missed an impact (a rebound
+        too small for the event locator to resolve): the impact is applied now."""
+        out = master.out[self.stator]
+        self.state["scale"] = max(self.state["scale"], abs(out["gap"]))
+        if (
+            self.state["mode"] == MODE_FREE
+            and out["gap"] < -1e-9 * self.state["scale"]
+            and out["gap_rate"] < 0.0
+        ):
+            return self.indicators(master)[0]
+        return None
 
     def _set_mode(self, master: MasterView, mode: int) -> None:
         self.state["mode"] = mode

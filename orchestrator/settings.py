@@ -111,6 +111,12 @@ def cosim_settings(raw: Mapping[str, Any]) -> CosimSettings:
         else:  # step, min_step, max_step
             v[key] = _number(key, value, 0.0)
     settings = CosimSettings(**v)
+    if settings.chatter_tol < 1e-7:
+        # slower rebounds bounce less than a few ulps of the gap: the locator cannot see them
+        raise SettingsError(
+            f"cosim.chatter_tol = {settings.chatter_tol!r} must be >= 1e-7 (slower rebounds "
+            "are below what the gap resolves in double precision)"
+        )
     if settings.unit_rtol < 1e-13:
         raise SettingsError(f"cosim.unit_rtol = {settings.unit_rtol!r} must be >= 1e-13")
     if settings.min_step and settings.max_step and settings.min_step > settings.max_step:

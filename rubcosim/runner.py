@@ -41,6 +41,68 @@ class ScenarioRun:
         return values[np.isfinite(values)]
 
 
+@dataclass
+class CosimRun:
+    """A co-simulation of a scenario, recorded on the same times as a :class:`ScenarioRun`."""
+
+    scenario: Scenario
+    result: Any  # rubcosim.orchestrator.master.CosimResult
+    grid_rows: np.ndarray
+    strobe_rows: np.ndarray
+
+    def _rows(self, rows: np.ndarray) -> np.ndarray:
+        return rows[rows < self.result.t.size]
+
+    def series(self, name: str) -> np.ndarray:
+        return self.result.output(name)[self._rows(self.grid_rows)]
+
+    @property
+    def time(self) -> np.ndarray:
+        return self.result.t[self._rows(self.grid_rows)]
+
+    def poincare(self, name: str) -> np.ndarray:
+        return self.result.output(name)[self._rows(self.strobe_rows)]
+
+
+def run_cosim_scenario(scenario: Scenario, backend: str | None = None) -> CosimRun:
+    """Co-simulate a scenario with its ``[cosim]`` settings (``backend`` overrides)."""
+    from dataclasses import replace
+
+    from rubcosim.orchestrator.assembly import output_times, run_cosim
+
+    settings = scenario.cosim if backend is None else replace(scenario.cosim, backend=backend)
+    times, grid_rows, strobe_rows = output_times(scenario)
+    result = run_cosim(scenario, settings, times=times)
+    return CosimRun(scenario, result, grid_rows, strobe_rows)
+
+
+def cosim_report(run: CosimRun) -> dict[str, Any]:
+    r, sc = run.result, run.scenario
+    return {
+        "scenario": sc.name,
+        "description": sc.description,
+        "source": sc.source,
+        "engine": r.engine,
+        "status": r.status,
+        "message": r.message,
+        "t_start": sc.sim["t_start"],
+        "t_end": sc.sim["t_end"],
+        "t_reached": r.t_reached,
+        "wall_time_s": r.wall_time_s,
+        "n_events": int(r.counters.get("events", 0)),
+        "n_impacts": int(r.counters.get("events_impact", 0)),
+        "counters": r.counters,
+        "cosim_settings": {
+            k: (list(v) if isinstance(v, tuple) else v) for k, v in vars(r.settings).items()
+        },
+        "input_orders": r.input_orders,
+        "forcing_period": sc.system.forcing_period,
+        "poincare_points": int(run._rows(run.strobe_rows).size),
+        "parameters": dict(sc.parameters),
+        "outputs": sc.outputs,
+    }
+
+
 def strobe_times(scenario: Scenario) -> np.ndarray:
     """Fixed-phase section t = (2 pi k + phase)/w after ``sim.poincare_discard``."""
     sim = scenario.sim
@@ -73,7 +135,9 @@ def run_scenario(scenario: Scenario, engine: str | None = None) -> ScenarioRun:
     return ScenarioRun(scenario, result, rank[: grid.size], rank[grid.size :])
 
 
-def report(run: ScenarioRun) -> dict[str, Any]:
+def report(run: ScenarioRun | CosimRun) -> dict[str, Any]:
+    if isinstance(run, CosimRun):
+        return cosim_report(run)
     r = run.result
     sc = run.scenario
     kinds = {name: int(np.sum(r.events.kind == i)) for i, name in enumerate(KIND_NAMES)}
@@ -122,7 +186,7 @@ def check_output_dir(out_dir: str | Path) -> Path:
     return out
 
 
-def write_results(run: ScenarioRun, out_dir: str | Path) -> Path:
+def write_results(run: ScenarioRun | CosimRun, out_dir: str | Path) -> Path:
     """Write everything into a fresh directory, then move it to ``out_dir``.
 
     A previous result in ``out_dir`` is replaced only once the new one is
@@ -130,10 +194,7 @@ def write_results(run: ScenarioRun, out_dir: str | Path) -> Path:
     """
     from . import plots  # matplotlib only when writing
 
-    out = check_output_dir(out_dir)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
-    try:
+    def fill(tmp: Path) -> None:
         names = run.scenario.outputs
         keep = run.time <= run.result.t_reached + 1e-12
         table = np.column_stack([run.time[keep]] + [run.series(n)[keep] for n in names])
@@ -147,6 +208,18 @@ def write_results(run: ScenarioRun, out_dir: str | Path) -> Path:
         )
         (tmp / "report.json").write_text(json.dumps(report(run), indent=2) + "\n", encoding="utf-8")
         plots.scenario_plots(run, tmp)
+
+    return write_directory(out_dir, fill)
+
+
+def write_directory(out_dir: str | Path, fill: Any) -> Path:
+    """Let ``fill(tmp)`` write a fresh directory, then move it to ``out_dir``, replacing
+    an earlier result only once the new one is complete."""
+    out = check_output_dir(out_dir)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
+    try:
+        fill(tmp)
         if out.exists():
             old = Path(tempfile.mkdtemp(prefix=f".{out.name}.old.", dir=out.parent))
             out.rename(old / out.name)
