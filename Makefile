@@ -18,6 +18,7 @@ $(STAMP): pyproject.toml
 
 run: $(STAMP)
 	$(VENV)/bin/rubcosim run $(FLAGSHIP) --engine accurate --out $(OUT)
+	$(VENV)/bin/rubcosim check $(FLAGSHIP) --out $(OUT)-check
 
 lint: $(STAMP)
 	$(VENV)/bin/ruff check .

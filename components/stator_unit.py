@@ -213,6 +213,17 @@ class _Penalty(Unit):
         dist, nx, ny = contact_geometry(rx, ry)
         return fx, fy, fn, q["clearance"] - dist, -(rvx * nx + rvy * ny)
 
+    def _force_outputs(self, cx: float, cy: float, cvx: float, cvy: float) -> dict[str, float]:
+        fx, fy, fn, gap, rate = self._contact(cx, cy, cvx, cvy)
+        return {
+            "fx": fx,
+            "fy": fy,
+            "normal_force": fn,
+            "gap": gap,
+            "gap_rate": rate,
+            "contact": 1.0 if gap < 0.0 else 0.0,
+        }
+
 
 _FORCE_OUTPUTS = (
     real_signal("fx", "N", "contact force on the disc along x"),
@@ -241,15 +252,7 @@ class ElasticStatorUnit(_Penalty):
 
     def _outputs(self) -> dict[str, float]:
         q = self.params
-        fx, fy, fn, gap, rate = self._contact(q["x_offset"], q["y_offset"], 0.0, 0.0)
-        return {
-            "fx": fx,
-            "fy": fy,
-            "normal_force": fn,
-            "gap": gap,
-            "gap_rate": rate,
-            "contact": 1.0 if gap < 0.0 else 0.0,
-        }
+        return self._force_outputs(q["x_offset"], q["y_offset"], 0.0, 0.0)
 
 
 class CasingStatorUnit(_Penalty):
@@ -289,14 +292,8 @@ class CasingStatorUnit(_Penalty):
 
     def _outputs(self) -> dict[str, float]:
         c = self.state["y"]
-        fx, fy, fn, gap, rate = self._contact(*self._centre(c))
         return {
-            "fx": fx,
-            "fy": fy,
-            "normal_force": fn,
-            "gap": gap,
-            "gap_rate": rate,
-            "contact": 1.0 if gap < 0.0 else 0.0,
+            **self._force_outputs(*self._centre(c)),
             "casing_x": c[0],
             "casing_y": c[1],
             "casing_vx": c[2],
