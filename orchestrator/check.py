@@ -107,7 +107,9 @@ def comparison_plot(scenario: Any, ref: Any, co: CosimResult, rows: np.ndarray, 
         axes[i, 0].plot(t, a, lw=1.6, label="reference (accurate)")
         axes[i, 0].plot(t, b, "--", lw=0.9, label=f"co-simulation ({co.settings.backend})")
         axes[i, 0].set_ylabel(name)
-        axes[i, 1].semilogy(t, np.abs(a - b) + 1e-300, lw=0.7)
+        # differences below round-off of the signal are drawn at that level
+        floor = 1e-16 * max(float(np.max(np.abs(a))) if a.size else 0.0, 1e-300)
+        axes[i, 1].semilogy(t, np.maximum(np.abs(a - b), floor), lw=0.7)
         axes[i, 1].set_ylabel(f"|difference| of {name}")
     axes[0, 0].legend(fontsize=8)
     axes[-1, 0].set_xlabel("t [s]")
