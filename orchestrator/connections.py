@@ -12,6 +12,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from functools import cached_property
 
 
 class CouplingError(ValueError):
@@ -25,13 +26,19 @@ class Connection:
     target: str
     sources: tuple[str, ...]
 
-    @property
+    # split once: the master reads these on every step
+    @cached_property
     def unit(self) -> str:
         return self.target.split(".", 1)[0]
 
-    @property
+    @cached_property
     def input(self) -> str:
         return self.target.split(".", 1)[1]
+
+    @cached_property
+    def pairs(self) -> tuple[tuple[str, str], ...]:
+        """The sources as (unit, output) pairs."""
+        return tuple(tuple(s.split(".", 1)) for s in self.sources)  # type: ignore[misc]
 
 
 _DISC = ("x", "y", "vx", "vy")

@@ -199,9 +199,9 @@ class Master:
     # --- one step ----------------------------------------------------------------------------
     def _sum(self, c: Connection) -> float:
         total = 0.0
-        for s in c.sources:
-            unit, name = s.split(".", 1)
-            total += self.out[unit][name]
+        out = self.out
+        for unit, name in c.pairs:
+            total += out[unit][name]
         return total
 
     def _polynomial(self, c: Connection, t: float, h: float, end: float | None, order: int):
