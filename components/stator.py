@@ -17,6 +17,11 @@ import math
 from .jit import njit
 from .parameters import nonnegative, positive, real
 
+# Contact modes of a disc on a stator: free, sliding with positive or negative slip,
+# sticking.  The reference engine's mode variable and the rigid stator unit's
+# contact_mode input use these numbers.
+MODE_FREE, MODE_SLIDE_POS, MODE_SLIDE_NEG, MODE_STICK = 0, 1, 2, 3
+
 _GEOMETRY = (
     positive("clearance", None, "m", "radial clearance d between disc and stator", example=1e-4),
     real("x_offset", 0.0, "m", "stator centre x0 (offset rotor when nonzero)"),

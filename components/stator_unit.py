@@ -24,6 +24,10 @@ from .parameters import ParameterError, nonnegative
 from .stator import (
     CASING_PARAMS,
     ELASTIC_PARAMS,
+    MODE_FREE,
+    MODE_SLIDE_NEG,
+    MODE_SLIDE_POS,
+    MODE_STICK,
     RIGID_PARAMS,
     constraint_normal_force,
     contact_force_components,
@@ -59,9 +63,6 @@ CONTACT = real_signal("contact", "1", "contact state: 0 free, 1 in contact or sl
 SLIP = real_signal(
     "slip", "m/s", "slip speed of the disc surface over the stator, v.t + Rd w (t = z x n)"
 )
-
-# contact modes of the rigid stator (the reference engine's modes, same numbers)
-MODE_FREE, MODE_SLIDE_POS, MODE_SLIDE_NEG, MODE_STICK = 0, 1, 2, 3
 
 
 def _relative(u: Mapping[str, float], cx: float, cy: float, cvx: float, cvy: float):

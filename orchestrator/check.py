@@ -31,13 +31,11 @@ def nearest_differences(times: np.ndarray, reference: np.ndarray) -> np.ndarray:
     time, not by index: a chattering sequence can end after fewer rebounds)."""
     if times.size == 0 or reference.size == 0:
         return np.zeros(0)
-    i = np.clip(np.searchsorted(reference, times), 1, reference.size - 1)
-    left, right = reference[i - 1], reference[np.minimum(i, reference.size - 1)]
-    return (
-        np.minimum(np.abs(times - left), np.abs(times - right))
-        if reference.size > 1
-        else (np.abs(times - reference[0]))
-    )
+    last = reference.size - 1
+    i = np.searchsorted(reference, times)
+    left = reference[np.clip(i - 1, 0, last)]
+    right = reference[np.clip(i, 0, last)]
+    return np.minimum(np.abs(times - left), np.abs(times - right))
 
 
 def compare(scenario: Any, settings: CosimSettings | None = None, fmu_dir: Path | None = None):

@@ -11,7 +11,7 @@ from __future__ import annotations
 import math
 from typing import Any, Protocol
 
-from rubcosim.components.stator_unit import MODE_FREE, MODE_SLIDE_NEG, MODE_SLIDE_POS, MODE_STICK
+from rubcosim.components.stator import MODE_FREE, MODE_SLIDE_NEG, MODE_SLIDE_POS, MODE_STICK
 
 from .events import Indicator
 

@@ -276,6 +276,11 @@ def build_scenario(
         cosim=cosim,
         connections=connections,
     )
+    if cosim.order and sorted(cosim.order) != sorted(system.units):
+        raise ScenarioError(
+            f"cosim.order = {list(cosim.order)} must name every unit once "
+            f"({', '.join(system.units)})"
+        )
     if connections:
         from rubcosim.orchestrator.assembly import scenario_connections
 

@@ -192,6 +192,12 @@ def test_scenario_cosim_and_connection_tables_are_validated(tmp_path):
     path.write_text(base + "\n[cosim]\nsteps = 3\n")
     with pytest.raises(ScenarioError, match="cosim.steps is not a setting"):
         load_scenario(path)
+    with pytest.raises(ScenarioError, match=r"cosim.order = \['rotor'\] must name every unit"):
+        load_scenario(SCENARIOS / "jeffcott_elastic_stator.toml", ['cosim.order=["rotor"]'])
+    ordered = load_scenario(
+        SCENARIOS / "jeffcott_elastic_stator.toml", ['cosim.order=["stator", "rotor"]']
+    )
+    assert ordered.cosim.order == ("stator", "rotor")
     path.write_text(base + '\n[connections]\n"rotor.fy" = []\n')
     sc = load_scenario(path)
     assert sc.connections == {"rotor.fy": []}

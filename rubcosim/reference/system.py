@@ -55,6 +55,10 @@ from rubcosim.components.oscillator import (
 )
 from rubcosim.components.rotor import jeffcott_force, journal_force, two_mass_disc_force
 from rubcosim.components.stator import (
+    MODE_FREE,
+    MODE_SLIDE_NEG,
+    MODE_SLIDE_POS,
+    MODE_STICK,
     constraint_normal_force,
     contact_force_components,
     contact_geometry,
@@ -96,10 +100,7 @@ P_VCHAT = 29  # normal speed below which a rebound counts as settled (chattering
 P_OMEGA_B = 30  # Baumgarte rate of the sustained-contact constraint, rad/s
 N_P = 32
 
-MODE_FREE = 0
-MODE_SLIDE_POS = 1
-MODE_SLIDE_NEG = 2
-MODE_STICK = 3
+# MODE_FREE, MODE_SLIDE_POS, MODE_SLIDE_NEG, MODE_STICK come from components.stator
 MODE_STUCK_UPPER = 1
 MODE_STUCK_LOWER = 2
 
