@@ -19,11 +19,11 @@ from .rotor import (
     JEFFCOTT_PARAMS,
     TWO_MASS_PARAMS,
     jeffcott_force,
-    journal_force,
     two_mass_disc_force,
 )
-from .stepping import integrate
+from .stepping import step_ode
 from .unit import INTEGRATOR_PARAMS, Unit, integer_signal, planar_motion, real_signal
+from .unit_odes import JEFFCOTT, JEFFCOTT_P, TWO_MASS, TWO_MASS_P
 
 _DISC_INPUTS = (
     real_signal("fx", "N", "external force on the disc along x (contact + control)"),
@@ -72,15 +72,20 @@ class _Rotor(Unit):
             self.state["y"][3] = self.u["reset_vy"]
             self.state["resets_applied"] = counter
 
+    # the ODE (rubcosim.components.unit_odes): its kind, parameters and inputs, in order
+    ode_kind: int
+    ode_params: tuple[str, ...]
+    ode_inputs: tuple[str, ...]
+
     def _advance(self, t: float, h: float) -> None:
         self._apply_reset()
         q = self.params
-        seg = integrate(self._rhs, t, t + h, self.state["y"], q["rtol"], q["atol"], self.state["h"])
-        self.state["y"] = seg.y
-        self.state["h"] = seg.h_next
-
-    def _rhs(self, t: float, y: np.ndarray) -> np.ndarray:
-        raise NotImplementedError
+        p = np.array([q[k] for k in self.ode_params], dtype=float)
+        st = self.state
+        st["y"], st["h"] = step_ode(
+            self.ode_kind, t, t + h, st["y"], st["h"], p, self.input_rows(self.ode_inputs),
+            q["rtol"], q["atol"],
+        )  # fmt: skip
 
     def _disc_force(self, t: float, y: np.ndarray) -> tuple[float, float]:
         raise NotImplementedError
@@ -101,6 +106,7 @@ class JeffcottRotorUnit(_Rotor):
     params_spec = (*JEFFCOTT_PARAMS, *INTEGRATOR_PARAMS)
     inputs = _DISC_INPUTS
     outputs = _DISC_OUTPUTS
+    ode_kind, ode_params, ode_inputs = JEFFCOTT, JEFFCOTT_P, ("fx", "fy")
 
     def _disc_force(self, t: float, y: np.ndarray) -> tuple[float, float]:
         q = self.params
@@ -108,13 +114,6 @@ class JeffcottRotorUnit(_Rotor):
             t, y[0], y[1], y[2], y[3], q["mass"], q["damping"], q["stiffness"],
             q["eccentricity"], q["speed"], q["gravity"],
         )  # fmt: skip
-
-    def _rhs(self, t: float, y: np.ndarray) -> np.ndarray:
-        fx, fy = self._disc_force(t, y)
-        m = self.params["mass"]
-        return np.array(
-            [y[2], y[3], (fx + self.input_at("fx", t)) / m, (fy + self.input_at("fy", t)) / m]
-        )
 
 
 class TwoMassRotorUnit(_Rotor):
@@ -132,6 +131,8 @@ class TwoMassRotorUnit(_Rotor):
         *_DISC_OUTPUTS,
         *planar_motion("journal", "journal_"),
     )
+    ode_kind, ode_params = TWO_MASS, TWO_MASS_P
+    ode_inputs = ("fx", "fy", "journal_fx", "journal_fy")
 
     def _initial_y(self) -> list[float]:
         q = self.params
@@ -144,27 +145,6 @@ class TwoMassRotorUnit(_Rotor):
             t, *y, q["mass"], q["damping"], q["stiffness"], q["shaft_damping"],
             q["eccentricity"], q["speed"], q["gravity"],
         )  # fmt: skip
-
-    def _rhs(self, t: float, y: np.ndarray) -> np.ndarray:
-        q = self.params
-        m, mj = q["mass"], q["journal_mass"]
-        fx, fy = self._disc_force(t, y)
-        jx, jy = journal_force(
-            *y, q["stiffness"], q["shaft_damping"], mj, q["journal_damping"], q["gravity"]
-        )
-        u = self.input_at
-        return np.array(
-            [
-                y[2],
-                y[3],
-                (fx + u("fx", t)) / m,
-                (fy + u("fy", t)) / m,
-                y[6],
-                y[7],
-                (jx + u("journal_fx", t)) / mj,
-                (jy + u("journal_fy", t)) / mj,
-            ]
-        )
 
     def _outputs(self) -> dict[str, float]:
         out = super()._outputs()

@@ -19,7 +19,6 @@ from typing import Any
 
 import numpy as np
 
-from .bearing import linear_bearing_force
 from .parameters import ParameterError, nonnegative
 from .stator import (
     CASING_PARAMS,
@@ -38,8 +37,9 @@ from .stator import (
     slip_speed,
     sticking_friction,
 )
-from .stepping import integrate
+from .stepping import step_ode
 from .unit import INTEGRATOR_PARAMS, Unit, integer_signal, planar_motion, real_signal
+from .unit_odes import CASING, CASING_P
 
 ROTOR_PARAMS = (
     nonnegative("speed", 0.0, "rad/s", "spin speed w of the rotor this stator meets"),
@@ -201,12 +201,10 @@ class _Penalty(Unit):
             return q["contact_damping"]
         return damping_from_restitution(q["restitution"], q["contact_stiffness"], q["impact_mass"])
 
-    def _contact(self, cx: float, cy: float, cvx: float, cvy: float, t: float | None = None):
-        """(fx, fy, Fn, gap, gap_rate) on the disc for a stator centred at (cx, cy), with
-        the disc state at time ``t`` inside the step (its inputs' values when None)."""
+    def _contact(self, cx: float, cy: float, cvx: float, cvy: float):
+        """(fx, fy, Fn, gap, gap_rate) on the disc for a stator centred at (cx, cy)."""
         q = self.params
-        u = self.u if t is None else {k: self.input_at(k, t) for k in ("x", "y", "vx", "vy")}
-        rx, ry, rvx, rvy = _relative(u, cx, cy, cvx, cvy)
+        rx, ry, rvx, rvy = _relative(self.u, cx, cy, cvx, cvy)
         fx, fy, fn = penalty_contact_force(
             rx, ry, rvx, rvy, q["clearance"], q["contact_stiffness"], self._contact_damping(),
             q["friction"], q["disc_radius"], q["speed"],
@@ -276,20 +274,14 @@ class CasingStatorUnit(_Penalty):
         q = self.params
         return q["x_offset"] + c[0], q["y_offset"] + c[1], c[2], c[3]
 
-    def _rhs(self, t: float, c: np.ndarray) -> np.ndarray:
-        q = self.params
-        fx, fy, _, _, _ = self._contact(*self._centre(c), t)
-        # the mount is an isotropic spring-damper (the linear bearing's law); the casing
-        # feels the opposite of the contact force on the disc
-        sx, sy = linear_bearing_force(c[0], c[1], c[2], c[3], q["stiffness"], q["damping"])
-        ms = q["mass"]
-        return np.array([c[2], c[3], (sx - fx) / ms, (sy - fy) / ms])
-
     def _advance(self, t: float, h: float) -> None:
-        q = self.params
-        seg = integrate(self._rhs, t, t + h, self.state["y"], q["rtol"], q["atol"], self.state["h"])
-        self.state["y"] = seg.y
-        self.state["h"] = seg.h_next
+        q = {**self.params, "contact_damping": self._contact_damping()}
+        p = np.array([q[k] for k in CASING_P], dtype=float)
+        st = self.state
+        st["y"], st["h"] = step_ode(
+            CASING, t, t + h, st["y"], st["h"], p, self.input_rows(("x", "y", "vx", "vy")),
+            q["rtol"], q["atol"],
+        )  # fmt: skip
 
     def _outputs(self) -> dict[str, float]:
         c = self.state["y"]

@@ -1,10 +1,17 @@
 """Integrate a unit's ODE across one communication step.
 
-Units hold their inputs constant over a step, so the step is an ordinary
-initial-value problem; scipy's DOP853 solves it.  The last internal step size
-is returned so that the unit can keep it in its state: the next step starts
-from it (no fresh initial-step guess each time) and a restored snapshot
-re-steps bit-identically.
+Two integrators, both DOP853:
+
+* :func:`advance`, compiled: the ODE of a unit kind from :mod:`.unit_odes`
+  with its inputs as polynomials over the step; no events.  This is what
+  the rotors and the casing stator use;
+* :func:`integrate`, scipy's ``solve_ivp``: any Python right-hand side with
+  terminal events (the single-DOF oscillator locates its impacts inside a
+  step with it).
+
+Both return the step size to start the next communication step with, which
+the unit keeps in its state: no fresh initial-step guess each time, and a
+restored snapshot re-steps bit-identically.
 """
 
 from __future__ import annotations
@@ -15,8 +22,119 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.integrate import solve_ivp
 
+from .dop853 import MIN_FACTOR, N_STAGES, A, B, C, error_norm, step_factor
+from .jit import njit
+from .unit_odes import unit_rhs
+
 Rhs = Callable[[float, np.ndarray], np.ndarray]
 EventFunction = Callable[[float, np.ndarray], float]
+
+OK = 0
+STEP_TOO_SMALL = 1
+NOT_FINITE = 2
+
+
+@njit
+def _rk_step(kind, t, y, f, h, p, u, t0, K, y_new, f_new, ytmp, dy):
+    n = y.shape[0]
+    for i in range(n):
+        K[0, i] = f[i]
+    for s in range(1, N_STAGES):
+        for i in range(n):
+            acc = 0.0
+            for j in range(s):
+                acc += A[s, j] * K[j, i]
+            ytmp[i] = y[i] + acc * h
+        unit_rhs(kind, t + C[s] * h, ytmp, p, u, t0, dy)
+        for i in range(n):
+            K[s, i] = dy[i]
+    for i in range(n):
+        acc = 0.0
+        for j in range(N_STAGES):
+            acc += B[j] * K[j, i]
+        y_new[i] = y[i] + h * acc
+    unit_rhs(kind, t + h, y_new, p, u, t0, f_new)
+    for i in range(n):
+        K[N_STAGES, i] = f_new[i]
+
+
+@njit
+def advance(kind, t0, t_end, y, h, p, u, rtol, atol):
+    """Integrate unit ``kind`` from ``t0`` to ``t_end`` (s), updating ``y`` in place.
+
+    ``h`` is the step to try first (<= 0: the whole span), ``p`` the kind's
+    parameter array, ``u`` the input rows (value, d1, d2) at ``t0``.  Returns
+    ``(h_next, status)``: the step to try next, and :data:`OK`,
+    :data:`STEP_TOO_SMALL` or :data:`NOT_FINITE` (``y`` is then partly advanced;
+    the caller restores it).
+    """
+    n = y.shape[0]
+    K = np.empty((N_STAGES + 1, n))
+    f = np.empty(n)
+    f_new = np.empty(n)
+    y_new = np.empty(n)
+    ytmp = np.empty(n)
+    dy = np.empty(n)
+    tol = np.full(n, atol)
+    unit_rhs(kind, t0, y, p, u, t0, f)
+    t = t0
+    if h <= 0.0:
+        h = t_end - t0
+    rejected = False
+    while t < t_end:
+        min_step = 10.0 * abs(np.nextafter(t, np.inf) - t)
+        if h < min_step:
+            return h, STEP_TOO_SMALL
+        t_new = t + h
+        clipped = t_new >= t_end
+        if clipped:
+            t_new = t_end
+        hs = t_new - t
+        _rk_step(kind, t, y, f, hs, p, u, t0, K, y_new, f_new, ytmp, dy)
+        err = error_norm(K, hs, y, y_new, rtol, tol)
+        if not np.isfinite(err):
+            # a trial stage left the model's domain: shrink, as scipy does
+            h = hs * MIN_FACTOR
+            rejected = True
+            continue
+        factor = step_factor(err, rejected)
+        if err >= 1.0:
+            h = hs * factor
+            rejected = True
+            continue
+        for i in range(n):
+            y[i] = y_new[i]
+            f[i] = f_new[i]
+        t = t_new
+        rejected = False
+        # a step cut short by the end of the span says nothing against the one proposed
+        h = max(hs * factor, h) if clipped else hs * factor
+    for i in range(n):
+        if not np.isfinite(y[i]):
+            return h, NOT_FINITE
+    return h, OK
+
+
+def step_ode(
+    kind: int,
+    t0: float,
+    t_end: float,
+    y: np.ndarray,
+    h: float,
+    p: np.ndarray,
+    u: np.ndarray,
+    rtol: float,
+    atol: float,
+) -> tuple[np.ndarray, float]:
+    """:func:`advance` on a copy of ``y``; returns ``(y at t_end, h_next)`` and raises
+    ``RuntimeError`` naming the time when the integration fails."""
+    y_new = np.array(y, dtype=float)
+    h_next, status = advance(kind, t0, t_end, y_new, h, p, u, rtol, atol)
+    if status == STEP_TOO_SMALL:
+        raise RuntimeError(f"step size below round-off between t = {t0} and {t_end}")
+    if status == NOT_FINITE:
+        raise RuntimeError(f"state not finite between t = {t0} and {t_end}")
+    return y_new, float(h_next)
 
 
 @dataclass

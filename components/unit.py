@@ -157,6 +157,16 @@ class Unit:
         d1, d2 = self.du.get(name, (0.0, 0.0))
         self.du[name] = (value, d2) if order == 1 else (d1, value)
 
+    def set_input_polynomial(self, name: str, value: float, d1: float, d2: float) -> None:
+        """Set an input's value and its first two time derivatives at the start of the
+        next step in one call (what a master with input extrapolation does every step)."""
+        if name not in self.u:
+            raise KeyError(f"{self.name}.{name} is not an input")
+        if not (math.isfinite(d1) and math.isfinite(d2)):
+            raise ValueError(f"{self.name}.{name}: derivatives {d1!r}, {d2!r} are not finite")
+        self.u[name] = value
+        self.du[name] = (d1, d2)
+
     def input_at(self, name: str, t: float) -> float:
         """Value of an input at time ``t`` inside the current step (its polynomial)."""
         d = self.du.get(name)
@@ -164,6 +174,17 @@ class Unit:
             return self.u[name]
         s = t - self.time
         return self.u[name] + s * (d[0] + 0.5 * s * d[1])
+
+    def input_rows(self, names: tuple[str, ...]) -> np.ndarray:
+        """The polynomials of inputs ``names`` as rows (value, d1, d2) at the step's start
+        (the form :mod:`.unit_odes` takes)."""
+        rows = np.zeros((len(names), 3))
+        for i, name in enumerate(names):
+            rows[i, 0] = self.u[name]
+            d = self.du.get(name)
+            if d is not None:
+                rows[i, 1], rows[i, 2] = d
+        return rows
 
     def set_inputs(self, values: Mapping[str, float]) -> None:
         for name, value in values.items():
@@ -177,16 +198,17 @@ class Unit:
         """Advance from ``t`` to ``t + h``; on failure restore the state and raise StepError."""
         if not (math.isfinite(t) and math.isfinite(h)) or h < 0.0:
             raise StepError(f"{self.name}: invalid step t = {t!r}, h = {h!r}")
-        for name, value in self.u.items():
-            if not math.isfinite(value):
-                raise StepError(f"{self.name}: input {name} = {value!r} is not finite at t = {t}")
+        bad_input = _first_nonfinite(self.u)
+        if bad_input is not None:
+            value = self.u[bad_input]
+            raise StepError(f"{self.name}: input {bad_input} = {value!r} is not finite at t = {t}")
         saved = self.get_state()
         try:
             self.time = t
             self._advance(t, h)
-            bad = [k for k, v in self.state.items() if not np.all(np.isfinite(v))]
-            if bad:
-                raise StepError(f"{self.name}: state {bad[0]} is not finite after the step")
+            bad = _first_nonfinite(self.state)
+            if bad is not None:
+                raise StepError(f"{self.name}: state {bad} is not finite after the step")
         except Exception as exc:
             self.set_state(saved)
             if isinstance(exc, StepError):
@@ -248,3 +270,15 @@ class Unit:
             return decode(json.loads(data.decode("utf-8")))
         except (UnicodeDecodeError, json.JSONDecodeError) as exc:
             raise ValueError(f"not a serialised unit state: {exc}") from exc
+
+
+def _first_nonfinite(values: Mapping[str, Any]) -> str | None:
+    """The first key whose value (a number or an array) is not finite, or None."""
+    for key, value in values.items():
+        if isinstance(value, np.ndarray):
+            # a sum is finite when every term is; an overflow falls to the exact check
+            if not math.isfinite(value.sum()) and not np.all(np.isfinite(value)):
+                return key
+        elif not math.isfinite(value):
+            return key
+    return None

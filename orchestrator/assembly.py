@@ -76,6 +76,25 @@ def scenario_connections(scenario: Any) -> list[Connection]:
     return connections
 
 
+def connection_scales(scenario: Any, connections: list[Connection]) -> dict[str, float]:
+    """A nominal magnitude for every connected input, from the unit of measure its unit
+    declares and the system's scales (as the reference engines scale their absolute
+    tolerance): the length scale for m, the velocity scale for m/s, and mass times the
+    velocity scale times the frequency for N.  The master never measures a coupling
+    error against less: a signal that starts from zero has no size of its own yet."""
+    system = scenario.system
+    length = float(system.state_scale[0])
+    vscale = float(system.velocity_scale)
+    mass = float(system.units["rotor"].params["mass"]) if "rotor" in system.units else 1.0
+    by_unit = {"m": length, "m/s": vscale, "N": mass * vscale * vscale / length}
+    types = {role: u.type for role, u in system.units.items()}
+    scales = {}
+    for c in connections:
+        signal = {s.name: s for s in unit_class(c.unit, types[c.unit]).inputs}[c.input]
+        scales[c.target] = by_unit.get(signal.unit, 0.0)
+    return scales
+
+
 def scenario_protocols(scenario: Any, settings: CosimSettings) -> list[EventProtocol]:
     units = scenario.system.units
     if "stator" not in units:
@@ -184,6 +203,7 @@ def run_cosim(
             interpolates,
             scenario_protocols(scenario, settings),
             [r for r, t in types.items() if unit_class(r, t).records_left_limits],
+            connection_scales(scenario, connections),
         )
         return master.run(
             scenario.sim["t_start"], scenario.sim["t_end"], times, record or scenario.outputs

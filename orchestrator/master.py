@@ -49,6 +49,7 @@ from .settings import CosimSettings
 from .step_control import PIController
 
 CHECKPOINT_EVERY = 64
+STALL_STEPS = 1000  # accepted steps in a row at the minimum step before giving up
 
 
 class CosimError(RuntimeError):
@@ -135,6 +136,7 @@ class Master:
         interpolates: Mapping[str, bool],
         protocols: Sequence[EventProtocol] = (),
         left_limits: Sequence[str] = (),
+        nominal: Mapping[str, float] | None = None,
     ) -> None:
         self.units = dict(units)
         self.settings = settings.with_defaults(period)
@@ -142,6 +144,7 @@ class Master:
         self.connections = list(connections)
         self.protocols = list(protocols)
         self.left_limit_units = list(left_limits)
+        self.nominal = dict(nominal or {})
         self.feedthrough = dict(feedthrough)
         self.eval_order = evaluation_order(list(self.units), self.connections, feedthrough)
         order = list(self.settings.order) or self.eval_order
@@ -171,13 +174,14 @@ class Master:
         """A zero-length step: the unit applies what was just set (a reset) at once."""
         self.units[unit].do_step(self.time, 0.0)
 
-    def settle(self) -> dict[str, float]:
+    def settle(self, fresh: bool = False) -> dict[str, float]:
         """Set every connected input from its sources' current outputs and refresh every
         unit's outputs; returns the input values.
 
         Units with direct feedthrough come in dependency order, so their sources are
         fresh; the others read from units later in the order, so their inputs are set
-        once more at the end (their outputs do not depend on them).
+        once more at the end (their outputs do not depend on them).  ``fresh``: the
+        outputs of units without feedthrough were read since their last change.
         """
         real: dict[str, float] = {}
         for name in self.eval_order:
@@ -192,7 +196,7 @@ class Master:
                     value = self._sum(c)
                     real[c.target] = value
                     unit.set_input(c.input, value)
-                if not late:
+                if not late and not (fresh and not self.feedthrough[name]):
                     self.out[name] = unit.get_outputs()
         return real
 
@@ -225,20 +229,22 @@ class Master:
                 if end is None and self.gauss_seidel and self.source_units[c.target] <= stepped:
                     end = self._sum(c)
                 v, d1, d2 = self._polynomial(c, t, h, end, order)
-                unit.set_input(c.input, v)
-                if order >= 1:
-                    unit.set_input_derivative(c.input, 1, d1)
-                if order >= 2:
-                    unit.set_input_derivative(c.input, 2, d2)
-                given[c.target] = evaluate(v, d1, d2, h) if order else v
+                if order:
+                    unit.set_input_polynomial(c.input, v, d1, d2)
+                    given[c.target] = evaluate(v, d1, d2, h)
+                else:
+                    unit.set_input(c.input, v)
+                    given[c.target] = v
             unit.do_step(t, h)
             self.counters["unit_steps"] += 1
             stepped.add(name)
-            for c in self.targets_of[name]:
-                unit.set_input(c.input, given[c.target])
+            if self.feedthrough[name]:
+                # its outputs at t + h follow its inputs there
+                for c in self.targets_of[name]:
+                    unit.set_input(c.input, given[c.target])
             self.out[name] = unit.get_outputs()
         self.time = t + h
-        real = self.settle()
+        real = self.settle(fresh=True)
         self._last_round = (t + h, given, real)
         return given, real
 
@@ -250,6 +256,14 @@ class Master:
             if g != r:
                 err = max(err, abs(g - r) / (tol * scale))
         return err
+
+    def _worst(self, given: Mapping[str, float], real: Mapping[str, float]) -> str:
+        """The input whose coupling error is the largest relative to its scale."""
+        return max(
+            real,
+            key=lambda k: abs(given[k] - real[k]) / max(self.scale[k], abs(real[k]), 1e-300),
+            default="no input",
+        )
 
     def _step(self, t: float, h: float, snap: Any):
         given, real = self._round(t, h)
@@ -375,7 +389,7 @@ class Master:
         try:
             real = self.settle()
             self.hist = {k: [(self.time, v)] for k, v in real.items()}
-            self.scale = {k: abs(v) for k, v in real.items()}
+            self.scale = {k: max(abs(v), self.nominal.get(k, 0.0)) for k, v in real.items()}
             self._record_due()
             self._loop(t_end)
         except (CosimError, StepError) as exc:
@@ -411,6 +425,7 @@ class Master:
         checkpoint = (self._snapshot(), self._master_state())
         since_checkpoint = 0
         snap_until = -math.inf
+        at_floor = 0
         while self.time < t_end:
             t = self.time
             target = t_end
@@ -466,7 +481,15 @@ class Master:
                 hit = None  # a plain master only sees sign changes at communication points
             self._accept(t, h, given, real, before)
             if st.adaptive and hit is None and h >= 0.5 * h_nominal:
-                self.h = min(self.pi.accept(h_nominal, err), st.max_step)
+                self.h = min(max(self.pi.accept(h_nominal, err), st.min_step), st.max_step)
+            # accepted only because the step could not shrink further
+            at_floor = at_floor + 1 if st.adaptive and err > 1.0 else 0
+            if at_floor > STALL_STEPS:
+                raise CosimError(
+                    f"the coupling error stayed above cosim.rtol at cosim.min_step = "
+                    f"{st.min_step:.3g} s for {STALL_STEPS} steps before t = {self.time:.9g} s; "
+                    f"the largest is on {self._worst(given, real)}"
+                )
             self._free(snap)
             since_checkpoint += 1
             if hit is not None:

@@ -203,3 +203,31 @@ def test_scenario_cosim_and_connection_tables_are_validated(tmp_path):
     assert sc.connections == {"rotor.fy": []}
     r = run_cosim(sc, replace(sc.cosim, adaptive=False, step=1e-4), times=np.array([0.0, 0.01]))
     assert r.ok
+
+
+def test_connection_scales_follow_the_units_of_measure():
+    from rubcosim.orchestrator.assembly import connection_scales, scenario_connections
+
+    sc = load_scenario(SCENARIOS / "jeffcott_rigid_stator.toml")
+    scales = connection_scales(sc, scenario_connections(sc))
+    d, w, m = 1e-4, 379.473319, 10.0
+    assert scales["stator.x"] == pytest.approx(d)
+    assert scales["stator.vy"] == pytest.approx(d * w)
+    assert scales["rotor.fx"] == pytest.approx(m * d * w * w)
+
+
+def test_a_run_starting_from_rest_keeps_its_step():
+    # the oil-film forces start from zero: relative to their own size, every first
+    # extrapolation would be 100% wrong and the step would collapse
+    sc = load_scenario(SCENARIOS / "two_mass_oilfilm_rub.toml", ["sim.t_end=0.002"])
+    r = run_cosim(sc, record=["rotor.x"])
+    assert r.ok and r.counters["steps"] < 500
+
+
+def test_a_tolerance_the_minimum_step_cannot_meet_stops_the_run_by_name():
+    sc = load_scenario(SCENARIOS / "two_mass_oilfilm_rub.toml", ["sim.t_end=0.05"])
+    h = sc.system.forcing_period / 400
+    r = run_cosim(sc, replace(sc.cosim, rtol=1e-15, step=h, min_step=h, max_step=h))
+    assert r.status == "failed", r.counters
+    assert "cosim.min_step" in r.message and "the largest is on " in r.message
+    assert r.t_reached < 0.05

@@ -7,15 +7,15 @@ import math
 import numpy as np
 import pytest
 
-from rubcosim.components import jit
+from rubcosim.components import jit, unit_odes
 from rubcosim.components.bearing import oilfilm_force, oilfilm_sigma
 from rubcosim.components.catalog import UNIT_TYPES
 from rubcosim.components.controller import base_delay
 from rubcosim.components.controller_unit import lagrange_cubic
 from rubcosim.components.parameters import ParameterError
-from rubcosim.components.rotor import free_whirl
+from rubcosim.components.rotor import free_whirl, jeffcott_force
 from rubcosim.components.stator import penalty_contact_force, rigid_impact
-from rubcosim.components.stepping import event, integrate
+from rubcosim.components.stepping import event, integrate, step_ode
 from rubcosim.components.unit import StepError, Unit
 from rubcosim.components.units import UNIT_CLASSES, make_unit, unit_class
 from rubcosim.fmus.build import MODEL_IDENTIFIERS
@@ -365,6 +365,48 @@ def test_integrate_stops_at_a_terminal_event():
     assert seg.event == -1 and seg.y[0] == pytest.approx(math.exp(-1.0), rel=1e-9)
     assert seg.h_next > 0
     assert integrate(lambda t, y: y, 1.0, 1.0, np.array([2.0]), 1e-8, 0.0).y[0] == 2.0
+
+
+def test_compiled_unit_step_matches_scipy_with_polynomial_inputs():
+    # the Jeffcott ODE with fx = 3 + 40 s + 500 s^2 (s into the step), fy = -2
+    q = dict(ROTOR, gravity=0.0)
+    p = np.array([q[k] for k in unit_odes.JEFFCOTT_P])
+    u = np.array([[3.0, 40.0, 1000.0], [-2.0, 0.0, 0.0]])
+    y0 = np.array([1e-5, -2e-5, 3e-3, 1e-3])
+    t0, t1 = 0.01, 0.03
+
+    def rhs(t, y):
+        s = t - t0
+        fx, fy = jeffcott_force(t, *y, q["mass"], q["damping"], q["stiffness"],
+                                q["eccentricity"], q["speed"], 0.0)  # fmt: skip
+        m = q["mass"]
+        return np.array([y[2], y[3], (fx + 3.0 + 40.0 * s + 500.0 * s * s) / m, (fy - 2.0) / m])
+
+    want = integrate(rhs, t0, t1, y0, 1e-12, 1e-16).y
+    got, h_next = step_ode(unit_odes.JEFFCOTT, t0, t1, y0, 0.0, p, u, 1e-12, 1e-16)
+    assert np.allclose(got, want, rtol=1e-9, atol=1e-14) and h_next > 0.0
+    assert np.array_equal(y0, [1e-5, -2e-5, 3e-3, 1e-3])  # the caller's state is untouched
+    # the step it proposes restarts the next call; a zero-length span changes nothing
+    again, _ = step_ode(unit_odes.JEFFCOTT, t1, t1, got, h_next, p, u, 1e-12, 1e-16)
+    assert np.array_equal(again, got)
+
+
+def test_compiled_unit_step_reports_failures():
+    p = np.array([1.0, 0.0, 1.0, 0.0, 0.0, 0.0])
+    bad = np.array([[math.inf, 0.0, 0.0], [0.0, 0.0, 0.0]])
+    with pytest.raises(RuntimeError, match="between t = 0.0 and 1.0"):
+        step_ode(unit_odes.JEFFCOTT, 0.0, 1.0, np.zeros(4), 0.0, p, bad, 1e-8, 1e-12)
+
+
+def test_input_polynomial_in_one_call():
+    rotor = make_unit("rotor", "jeffcott", **ROTOR)
+    rotor.set_input_polynomial("fx", 1.0, 2.0, 4.0)
+    assert rotor.input_at("fx", 0.5) == pytest.approx(1.0 + 1.0 + 0.5)
+    assert rotor.input_rows(("fy", "fx")).tolist() == [[0.0, 0.0, 0.0], [1.0, 2.0, 4.0]]
+    with pytest.raises(KeyError, match="rotor.fz is not an input"):
+        rotor.set_input_polynomial("fz", 1.0, 0.0, 0.0)
+    with pytest.raises(ValueError, match="not finite"):
+        rotor.set_input_polynomial("fx", 1.0, math.nan, 0.0)
 
 
 def test_kernels_are_compiled_in_the_installed_package():

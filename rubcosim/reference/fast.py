@@ -12,7 +12,18 @@ import math
 
 import numba as nb
 import numpy as np
-from scipy.integrate._ivp import dop853_coefficients as _dop
+
+from rubcosim.components.dop853 import (
+    MIN_FACTOR,
+    N_EXT,
+    N_STAGES,
+    A,
+    B,
+    C,
+    D,
+    error_norm,
+    step_factor,
+)
 
 from .core import (
     C_EVAL,
@@ -36,19 +47,6 @@ from .core import (
     step_end_events,
 )
 from .system import N_DELAYED, N_EVENTS
-
-N_STAGES = _dop.N_STAGES
-A = np.ascontiguousarray(_dop.A)
-B = np.ascontiguousarray(_dop.B)
-C = np.ascontiguousarray(_dop.C)
-E3 = np.ascontiguousarray(_dop.E3)
-E5 = np.ascontiguousarray(_dop.E5)
-D = np.ascontiguousarray(_dop.D)
-N_EXT = _dop.N_STAGES_EXTENDED
-SAFETY = 0.9
-MIN_FACTOR = 0.2
-MAX_FACTOR = 10.0
-ERROR_EXPONENT = -1.0 / 8.0
 
 
 @nb.njit(cache=True)
@@ -140,25 +138,6 @@ def rk_step(t, y, f, h, mode, p, ip, hist, yd, K, y_new, f_new, ytmp, dy, cnt):
 
 
 @nb.njit(cache=True)
-def error_norm(K, h, y, y_new, rtol, atol):
-    n = y.shape[0]
-    e5 = 0.0
-    e3 = 0.0
-    for i in range(n):
-        sc = atol[i] + max(abs(y[i]), abs(y_new[i])) * rtol
-        a5 = 0.0
-        a3 = 0.0
-        for j in range(N_STAGES + 1):
-            a5 += E5[j] * K[j, i]
-            a3 += E3[j] * K[j, i]
-        e5 += (a5 / sc) ** 2
-        e3 += (a3 / sc) ** 2
-    if e5 == 0.0 and e3 == 0.0:
-        return 0.0
-    return abs(h) * e5 / math.sqrt((e5 + 0.01 * e3) * n)
-
-
-@nb.njit(cache=True)
 def integrate(
     y0,
     mode,
@@ -237,16 +216,9 @@ def integrate(
                     rejected = True
                     cnt[C_REJECTED] += 1
                     continue
+                h_abs *= step_factor(err, rejected)
                 if err < 1.0:
-                    if err == 0.0:
-                        factor = MAX_FACTOR
-                    else:
-                        factor = min(MAX_FACTOR, SAFETY * err**ERROR_EXPONENT)
-                    if rejected:
-                        factor = min(1.0, factor)
-                    h_abs *= factor
                     break
-                h_abs *= max(MIN_FACTOR, SAFETY * err**ERROR_EXPONENT)
                 rejected = True
                 cnt[C_REJECTED] += 1
             if cnt[C_STATUS] != STATUS_OK:

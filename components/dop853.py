@@ -1,0 +1,58 @@
+"""The DOP853 Runge-Kutta pair: tableau, error norm and step-size rule, read from scipy.
+
+Shared by the reference's ``fast`` engine and the units' compiled steps, so
+every compiled integrator in rubcosim takes the steps scipy's ``DOP853``
+would (same coefficients, same error norm, same controller constants).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from scipy.integrate._ivp import dop853_coefficients as _dop
+
+from .jit import njit
+
+N_STAGES = _dop.N_STAGES
+N_EXT = _dop.N_STAGES_EXTENDED
+A = np.ascontiguousarray(_dop.A)
+B = np.ascontiguousarray(_dop.B)
+C = np.ascontiguousarray(_dop.C)
+E3 = np.ascontiguousarray(_dop.E3)
+E5 = np.ascontiguousarray(_dop.E5)
+D = np.ascontiguousarray(_dop.D)
+SAFETY = 0.9
+MIN_FACTOR = 0.2
+MAX_FACTOR = 10.0
+ERROR_EXPONENT = -1.0 / 8.0
+
+
+@njit
+def error_norm(K, h, y, y_new, rtol, atol):
+    """scipy's DOP853 error norm of a step from ``y`` to ``y_new`` with stages ``K``;
+    ``atol`` is a per-component array."""
+    n = y.shape[0]
+    e5 = 0.0
+    e3 = 0.0
+    for i in range(n):
+        sc = atol[i] + max(abs(y[i]), abs(y_new[i])) * rtol
+        a5 = 0.0
+        a3 = 0.0
+        for j in range(N_STAGES + 1):
+            a5 += E5[j] * K[j, i]
+            a3 += E3[j] * K[j, i]
+        e5 += (a5 / sc) ** 2
+        e3 += (a3 / sc) ** 2
+    if e5 == 0.0 and e3 == 0.0:
+        return 0.0
+    return abs(h) * e5 / math.sqrt((e5 + 0.01 * e3) * n)
+
+
+@njit
+def step_factor(err, rejected):
+    """Factor on the step after an error norm ``err``; below 1 the step is accepted."""
+    if err < 1.0:
+        factor = MAX_FACTOR if err == 0.0 else min(MAX_FACTOR, SAFETY * err**ERROR_EXPONENT)
+        return min(1.0, factor) if rejected else factor
+    return max(MIN_FACTOR, SAFETY * err**ERROR_EXPONENT)

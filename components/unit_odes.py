@@ -1,0 +1,98 @@
+"""The ODE of every unit with a continuous state, as one compiled right-hand side.
+
+A unit's inputs are polynomials over its step (value, first and second
+derivative at the step's start, see :class:`.unit.Unit`); they arrive here
+as rows ``u[i] = (value, d1, d2)`` in the order of the unit's ``ode_inputs``, with
+``t0`` the step's start.  Parameters come as a flat array in the order the
+``*_P`` names below give.  One function with a ``kind`` switch, not one per
+unit: numba caches a compiled function only if it takes no function
+arguments, and the stepper (:func:`.stepping.advance`) must be cached.
+"""
+
+from __future__ import annotations
+
+from .bearing import linear_bearing_force
+from .jit import njit
+from .rotor import jeffcott_force, journal_force, two_mass_disc_force
+from .stator import penalty_contact_force
+
+JEFFCOTT = 0
+TWO_MASS = 1
+CASING = 2
+
+# parameter order per kind (names of the unit's parameters)
+JEFFCOTT_P = ("mass", "damping", "stiffness", "eccentricity", "speed", "gravity")
+TWO_MASS_P = (*JEFFCOTT_P, "shaft_damping", "journal_mass", "journal_damping")
+CASING_P = (
+    "clearance",
+    "contact_stiffness",
+    "contact_damping",
+    "friction",
+    "disc_radius",
+    "speed",
+    "x_offset",
+    "y_offset",
+    "stiffness",
+    "damping",
+    "mass",
+)
+
+
+@njit
+def input_at(u, i, s):
+    """Input ``i`` at ``s`` seconds into the step."""
+    return u[i, 0] + s * (u[i, 1] + 0.5 * s * u[i, 2])
+
+
+@njit
+def unit_rhs(kind, t, y, p, u, t0, dy):
+    """dy/dt of unit ``kind`` at time ``t`` (s), written into ``dy``."""
+    s = t - t0
+    if kind == JEFFCOTT:
+        # state (x, y, vx, vy) of the disc; inputs fx, fy (N)
+        m = p[0]
+        fx, fy = jeffcott_force(t, y[0], y[1], y[2], y[3], m, p[1], p[2], p[3], p[4], p[5])
+        dy[0] = y[2]
+        dy[1] = y[3]
+        dy[2] = (fx + input_at(u, 0, s)) / m
+        dy[3] = (fy + input_at(u, 1, s)) / m
+    elif kind == TWO_MASS:
+        # state: disc (x, y, vx, vy), journal (x, y, vx, vy); inputs fx, fy on the disc
+        # and journal_fx, journal_fy
+        m, k, g, cs, mj, cj = p[0], p[2], p[5], p[6], p[7], p[8]
+        fx, fy = two_mass_disc_force(
+            t, y[0], y[1], y[2], y[3], y[4], y[5], y[6], y[7], m, p[1], k, cs, p[3], p[4], g
+        )
+        jx, jy = journal_force(y[0], y[1], y[2], y[3], y[4], y[5], y[6], y[7], k, cs, mj, cj, g)
+        dy[0] = y[2]
+        dy[1] = y[3]
+        dy[2] = (fx + input_at(u, 0, s)) / m
+        dy[3] = (fy + input_at(u, 1, s)) / m
+        dy[4] = y[6]
+        dy[5] = y[7]
+        dy[6] = (jx + input_at(u, 2, s)) / mj
+        dy[7] = (jy + input_at(u, 3, s)) / mj
+    elif kind == CASING:
+        # state: casing (x, y, vx, vy); inputs: disc x, y, vx, vy.  The mount is an
+        # isotropic spring-damper (the linear bearing's law); the casing feels the
+        # opposite of the contact force on the disc.
+        cx = p[6] + y[0]
+        cy = p[7] + y[1]
+        fx, fy, _ = penalty_contact_force(
+            input_at(u, 0, s) - cx,
+            input_at(u, 1, s) - cy,
+            input_at(u, 2, s) - y[2],
+            input_at(u, 3, s) - y[3],
+            p[0],
+            p[1],
+            p[2],
+            p[3],
+            p[4],
+            p[5],
+        )
+        sx, sy = linear_bearing_force(y[0], y[1], y[2], y[3], p[8], p[9])
+        ms = p[10]
+        dy[0] = y[2]
+        dy[1] = y[3]
+        dy[2] = (sx - fx) / ms
+        dy[3] = (sy - fy) / ms
