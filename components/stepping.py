@@ -4,7 +4,8 @@ Two integrators, both DOP853:
 
 * :func:`advance`, compiled: the ODE of a unit kind from :mod:`.unit_odes`
   with its inputs as polynomials over the step; no events.  This is what
-  the rotors and the casing stator use;
+  the rotors and the casing stator use (through :func:`step_ode`, which hands
+  the same right-hand side to scipy where numba is not in use);
 * :func:`integrate`, scipy's ``solve_ivp``: any Python right-hand side with
   terminal events (the single-DOF oscillator locates its impacts inside a
   step with it).
@@ -23,7 +24,7 @@ import numpy as np
 from scipy.integrate import solve_ivp
 
 from .dop853 import MIN_FACTOR, N_STAGES, A, B, C, error_norm, step_factor
-from .jit import njit
+from .jit import USE_NUMBA, njit
 from .unit_odes import unit_rhs
 
 Rhs = Callable[[float, np.ndarray], np.ndarray]
@@ -127,7 +128,20 @@ def step_ode(
     atol: float,
 ) -> tuple[np.ndarray, float]:
     """:func:`advance` on a copy of ``y``; returns ``(y at t_end, h_next)`` and raises
-    ``RuntimeError`` naming the time when the integration fails."""
+    ``RuntimeError`` naming the time when the integration fails.
+
+    Without numba (inside an FMU by default) the same right-hand side goes to scipy's
+    DOP853 instead: the element-wise loops of :func:`advance` are fast only compiled.
+    """
+    if not USE_NUMBA:
+        dy = np.empty(len(y))
+
+        def rhs(t: float, state: np.ndarray) -> np.ndarray:
+            unit_rhs(kind, t, state, p, u, t0, dy)
+            return dy.copy()
+
+        seg = integrate(rhs, t0, t_end, y, rtol, atol, h)
+        return seg.y, seg.h_next
     y_new = np.array(y, dtype=float)
     h_next, status = advance(kind, t0, t_end, y_new, h, p, u, rtol, atol)
     if status == STEP_TOO_SMALL:

@@ -90,6 +90,8 @@ class UnitSlave(Fmi2Slave):
                 self._cache = None
 
             extra: dict[str, Any] = {"setter": setter}
+            if s.kind == "real":
+                self._register_derivative_carriers(s)
         else:
 
             def getter(name: str = s.name) -> Any:
@@ -116,6 +118,31 @@ class UnitSlave(Fmi2Slave):
             )
             self._units[s.name] = s.unit
         self.register_variable(var)
+
+    def _register_derivative_carriers(self, s: Any) -> None:
+        """Tunable parameters ``<input>_d1``, ``<input>_d2``: the input's first and second
+        time derivative over the next step.  The FMU's loader shim implements
+        fmi2SetRealInputDerivatives by setting them; setting the input clears them."""
+        for order in (1, 2):
+
+            def getter(name: str = s.name, k: int = order - 1) -> float:
+                return self._unit.du.get(name, (0.0, 0.0))[k]
+
+            def setter(value: float, name: str = s.name, k: int = order) -> None:
+                self._unit.set_input_derivative(name, k, value)
+
+            self.register_variable(
+                Real(
+                    f"{s.name}_d{order}",
+                    causality=Fmi2Causality.parameter,
+                    variability=Fmi2Variability.tunable,
+                    description=f"d^{order}/dt^{order} of input {s.name} over the next step "
+                    "(what fmi2SetRealInputDerivatives sets; 0 after the input is set)",
+                    getter=getter,
+                    setter=setter,
+                )
+            )
+            self._units[f"{s.name}_d{order}"] = _per_second(s.unit, order)
 
     def _outputs(self) -> dict[str, float]:
         if self._dirty:
@@ -183,6 +210,8 @@ class UnitSlave(Fmi2Slave):
         """pythonfmu's description plus the unit of every real variable."""
         root = super().to_xml(model_options or {})
         root.attrib.pop("generationDateAndTime", None)  # optional; dropped for reproducible builds
+        # input derivatives reach the unit through the loader shim (rubcosim.fmus.native)
+        root.find("CoSimulation").set("canInterpolateInputs", "true")
         names = sorted({u for u in self._units.values() if u})
         if names:
             definitions = Element("UnitDefinitions")
@@ -195,3 +224,12 @@ class UnitSlave(Fmi2Slave):
             if unit and real is not None:
                 real.set("unit", unit)
         return root
+
+
+def _per_second(unit: str, order: int) -> str:
+    """The unit of the ``order``-th time derivative: N -> N/s, N/s2; m/s -> m/s2, m/s3."""
+    if not unit:
+        return ""
+    if unit.endswith("/s"):
+        return f"{unit}{order + 1}"
+    return f"{unit}/s" if order == 1 else f"{unit}/s{order}"

@@ -11,7 +11,9 @@ therefore cannot run these FMUs.
 (``loader/rubcosim_fmu_loader.c``) that starts the right Python on demand and forwards every FMI
 call to the original library, stored as ``<id>_pythonfmu_export.so``.  The Python runtime used to
 build the FMU is recorded in ``resources/rubcosim_python.txt`` so the shim can find libpython and
-the venv on the same machine without any environment variables.
+the venv on the same machine without any environment variables.  The shim also provides
+``fmi2SetRealInputDerivatives``, which pythonfmu lacks: it sets the tunable parameters that carry
+each input's derivatives, listed in ``resources/rubcosim_input_derivatives.txt``.
 """
 
 from __future__ import annotations
@@ -29,10 +31,13 @@ import zipfile
 from pathlib import Path
 
 __all__ = [
+    "DERIVATIVES_FILE",
+    "DERIVATIVE_CARRIER",
     "EXPORT_SUFFIX",
     "LOADER_SOURCE",
     "RUNTIME_FILE",
     "compile_loader",
+    "derivative_table",
     "install_loader",
     "model_identifier",
     "python_runtime",
@@ -42,6 +47,10 @@ __all__ = [
 LOADER_SOURCE = Path(__file__).parent / "loader" / "rubcosim_fmu_loader.c"
 #: Archive name of the runtime record read by the shim.
 RUNTIME_FILE = "resources/rubcosim_python.txt"
+#: Archive name of the input-derivative table read by the shim.
+DERIVATIVES_FILE = "resources/rubcosim_input_derivatives.txt"
+#: Names of the tunable parameters that carry a real input's first and second derivative.
+DERIVATIVE_CARRIER = "{input}_d{order}"
 #: Suffix appended to the model identifier for the original pythonfmu export library.
 EXPORT_SUFFIX = "_pythonfmu_export"
 
@@ -160,6 +169,25 @@ def model_identifier(fmu: Path) -> str:
     return cs.get("modelIdentifier", "")
 
 
+def derivative_table(model_description: bytes) -> str:
+    """``input_vr order carrier_vr`` lines for every real input whose derivative carriers
+    (:data:`DERIVATIVE_CARRIER`) the model declares: the shim's fmi2SetRealInputDerivatives."""
+    root = ET.fromstring(model_description)
+    reals = {}
+    for sv in root.iter("ScalarVariable"):
+        if sv.find("Real") is not None:
+            reals[sv.get("name")] = (sv.get("causality"), int(sv.get("valueReference", "0")))
+    lines = []
+    for name, (causality, vr) in reals.items():
+        if causality != "input":
+            continue
+        for order in (1, 2):
+            carrier = reals.get(DERIVATIVE_CARRIER.format(input=name, order=order))
+            if carrier is not None:
+                lines.append(f"{vr} {order} {carrier[1]}\n")
+    return "".join(lines)
+
+
 def install_loader(fmu: Path) -> None:
     """Install the loader shim into a pythonfmu-built FMU, in place.
 
@@ -187,12 +215,13 @@ def install_loader(fmu: Path) -> None:
                 raise ValueError(f"{fmu}: no {shim_name} (not a pythonfmu FMU for linux64?)")
             entries: dict[str, tuple[zipfile.ZipInfo, bytes]] = {}
             for info in src.infolist():
-                skip = info.filename in (shim_name, export_name, RUNTIME_FILE)
+                skip = info.filename in (shim_name, export_name, RUNTIME_FILE, DERIVATIVES_FILE)
                 if skip or info.is_dir() or "__pycache__" in info.filename:
                     continue
                 mode = 0o755 if info.filename.startswith("binaries/") else 0o644
                 entries[info.filename] = (_new_info(info.filename, mode), src.read(info))
             export_bytes = src.read(export_info)
+            table = derivative_table(src.read("modelDescription.xml"))
 
         entries[export_name] = (_new_info(export_name, 0o755), export_bytes)
         entries[shim_name] = (_new_info(shim_name, 0o755), shim.read_bytes())
@@ -200,6 +229,7 @@ def install_loader(fmu: Path) -> None:
             _new_info(RUNTIME_FILE, 0o644),
             _runtime_text(python_runtime()).encode(),
         )
+        entries[DERIVATIVES_FILE] = (_new_info(DERIVATIVES_FILE, 0o644), table.encode())
 
         fd, tmp_fmu = tempfile.mkstemp(suffix=".fmu", prefix=f".{fmu.stem}.", dir=fmu.parent)
         os.close(fd)

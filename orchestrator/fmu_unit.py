@@ -125,6 +125,19 @@ class FmuUnit:
     def set_input(self, name: str, value: float) -> None:
         self._call(f"set {name}", self.set_values, {name: value})
 
+    def set_input_polynomial(self, name: str, value: float, d1: float, d2: float) -> None:
+        """The input's value and first two time derivatives for the next step
+        (fmi2SetReal, then fmi2SetRealInputDerivatives; needs canInterpolateInputs)."""
+        vr = self._variable(name).valueReference
+        self._call(f"set {name}", self.set_values, {name: value})
+        self._call(
+            f"fmi2SetRealInputDerivatives {name}",
+            self._fmu.setRealInputDerivatives,
+            [vr, vr],
+            [1, 2],
+            [d1, d2],
+        )
+
     def set_inputs(self, values: Mapping[str, float]) -> None:
         self._call("set inputs", self.set_values, values)
 

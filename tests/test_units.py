@@ -391,6 +391,19 @@ def test_compiled_unit_step_matches_scipy_with_polynomial_inputs():
     assert np.array_equal(again, got)
 
 
+def test_unit_step_without_numba_goes_to_scipy_with_the_same_result(monkeypatch):
+    from rubcosim.components import stepping
+
+    q = dict(ROTOR, gravity=0.0)
+    p = np.array([q[k] for k in unit_odes.JEFFCOTT_P])
+    u = np.array([[3.0, 40.0, 1000.0], [-2.0, 0.0, 0.0]])
+    y0 = np.array([1e-5, -2e-5, 3e-3, 1e-3])
+    compiled, _ = step_ode(unit_odes.JEFFCOTT, 0.0, 0.02, y0, 0.0, p, u, 1e-12, 1e-16)
+    monkeypatch.setattr(stepping, "USE_NUMBA", False)
+    plain, h_next = step_ode(unit_odes.JEFFCOTT, 0.0, 0.02, y0, 0.0, p, u, 1e-12, 1e-16)
+    assert np.allclose(plain, compiled, rtol=1e-9, atol=1e-14) and h_next > 0.0
+
+
 def test_compiled_unit_step_reports_failures():
     p = np.array([1.0, 0.0, 1.0, 0.0, 0.0, 0.0])
     bad = np.array([[math.inf, 0.0, 0.0], [0.0, 0.0, 0.0]])

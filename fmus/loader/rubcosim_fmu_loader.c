@@ -147,10 +147,6 @@ typedef struct {
        const fmi2ValueReference vKnown_ref[], size_t nKnown, const fmi2Real dvKnown[],           \
        fmi2Real dvUnknown[]),                                                                    \
       (c, vUnknown_ref, nUnknown, vKnown_ref, nKnown, dvKnown, dvUnknown))                       \
-    X(fmi2SetRealInputDerivatives,                                                               \
-      (fmi2Component c, const fmi2ValueReference vr[], size_t nvr, const fmi2Integer order[],    \
-       const fmi2Real value[]),                                                                  \
-      (c, vr, nvr, order, value))                                                                \
     X(fmi2GetRealOutputDerivatives,                                                              \
       (fmi2Component c, const fmi2ValueReference vr[], size_t nvr, const fmi2Integer order[],    \
        fmi2Real value[]),                                                                        \
@@ -852,6 +848,58 @@ RCS_EXPORT const char *fmi2GetVersion(void)
     return g_api.fmi2GetVersion ? g_api.fmi2GetVersion() : "2.0";
 }
 
+/* ------------------------------------------------------------------------------------------ */
+/* Input derivatives                                                                          */
+/* ------------------------------------------------------------------------------------------ */
+
+/* pythonfmu has no fmi2SetRealInputDerivatives.  The slave declares, for each real input, two
+ * tunable parameters that carry its first and second time derivative; the build lists them in
+ * <resources>/rubcosim_input_derivatives.txt, one "input_vr order carrier_vr" per line, and this
+ * shim turns the call into fmi2SetReal on the carriers.  Filled once, under g_lock. */
+#define RCS_MAX_DERIVATIVES 1024
+static struct {
+    fmi2ValueReference input;
+    fmi2Integer order;
+    fmi2ValueReference carrier;
+} g_der[RCS_MAX_DERIVATIVES];
+static size_t g_n_der = 0;
+
+static void read_derivative_table(const char *resources)
+{
+    g_n_der = 0;
+    if (resources == NULL) return;
+    char path[PATH_MAX];
+    if (snprintf(path, sizeof path, "%s/rubcosim_input_derivatives.txt", resources) >=
+        (int)sizeof path)
+        return;
+    FILE *f = fopen(path, "r");
+    if (f == NULL) return;
+    unsigned long input, carrier;
+    long order;
+    while (g_n_der < RCS_MAX_DERIVATIVES && fscanf(f, "%lu %ld %lu", &input, &order, &carrier) == 3) {
+        g_der[g_n_der].input = (fmi2ValueReference)input;
+        g_der[g_n_der].order = (fmi2Integer)order;
+        g_der[g_n_der].carrier = (fmi2ValueReference)carrier;
+        g_n_der++;
+    }
+    fclose(f);
+}
+
+RCS_EXPORT fmi2Status fmi2SetRealInputDerivatives(fmi2Component c, const fmi2ValueReference vr[],
+                                                  size_t nvr, const fmi2Integer order[],
+                                                  const fmi2Real value[])
+{
+    if (g_api.fmi2SetReal == NULL) return fmi2Error;
+    for (size_t i = 0; i < nvr; i++) {
+        size_t k = 0;
+        while (k < g_n_der && !(g_der[k].input == vr[i] && g_der[k].order == order[i])) k++;
+        if (k == g_n_der) return fmi2Error; /* not a real input, or an order above 2 */
+        fmi2Status status = g_api.fmi2SetReal(c, &g_der[k].carrier, 1, &value[i]);
+        if (status > fmi2Warning) return status;
+    }
+    return fmi2OK;
+}
+
 RCS_EXPORT fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType,
                                          fmi2String fmuGUID, fmi2String fmuResourceLocation,
                                          const fmi2CallbackFunctions *functions,
@@ -870,6 +918,7 @@ RCS_EXPORT fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuTy
         int ok = ensure_python(resources, &err, &info, &warn) == 0 &&
                  load_export_library(resources, &err) == 0;
         if (ok) {
+            read_derivative_table(resources);
             g_ready = 1;
             if (info.len > 0 && (warn || loggingOn))
                 log_message(functions, instanceName, warn ? fmi2Warning : fmi2OK,
