@@ -282,8 +282,6 @@ def main(argv: list[str] | None = None) -> int:
     results: dict[str, Any] = {}
     if args.merge and (args.out / "cosim_wp.json").exists():
         results = json.loads((args.out / "cosim_wp.json").read_text())["cases"]
-    for case in args.cases:
-        bench_case(case, args, results.setdefault(case, {}))
     meta = {
         "date": datetime.datetime.now().isoformat(timespec="seconds"),
         "python": sys.version.split()[0],
@@ -293,7 +291,11 @@ def main(argv: list[str] | None = None) -> int:
         "repeats": args.repeats,
         "quick": args.quick,
     }
-    (args.out / "cosim_wp.json").write_text(json.dumps({"meta": meta, "cases": results}, indent=1))
+    for case in args.cases:
+        bench_case(case, args, results.setdefault(case, {}))
+        # saved after every case: an interrupted run keeps what it measured (see --merge)
+        text = json.dumps({"meta": meta, "cases": results}, indent=1)
+        (args.out / "cosim_wp.json").write_text(text)
     md = (
         table(results, args.target)
         + "\n\n"

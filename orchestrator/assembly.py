@@ -26,7 +26,7 @@ from rubcosim.components.units import unit_class
 from rubcosim.reference import system as S
 
 from .connections import Connection, apply_table, check_connections, default_connections
-from .master import CosimResult, Master
+from .master import CosimError, CosimResult, Master
 from .protocols import ElasticContact, EventProtocol, RigidContact
 from .settings import CosimSettings
 
@@ -68,10 +68,17 @@ def scenario_connections(scenario: Any) -> list[Connection]:
     types = {role: u.type for role, u in scenario.system.units.items()}
     connections = apply_table(default_connections(types), scenario.connections)
     classes = {role: unit_class(role, t) for role, t in types.items()}
+    foreign = getattr(scenario, "fmus", {})
     check_connections(
         connections,
-        {r: [s.name for s in c.inputs] for r, c in classes.items()},
-        {r: [s.name for s in c.outputs] for r, c in classes.items()},
+        {
+            **{r: [s.name for s in c.inputs] for r, c in classes.items()},
+            **{n: list(f.inputs) for n, f in foreign.items()},
+        },
+        {
+            **{r: [s.name for s in c.outputs] for r, c in classes.items()},
+            **{n: list(f.outputs) for n, f in foreign.items()},
+        },
     )
     return connections
 
@@ -90,6 +97,9 @@ def connection_scales(scenario: Any, connections: list[Connection]) -> dict[str,
     types = {role: u.type for role, u in system.units.items()}
     scales = {}
     for c in connections:
+        if c.unit not in types:  # a foreign FMU: no declared unit of measure to go by
+            scales[c.target] = 0.0
+            continue
         signal = {s.name: s for s in unit_class(c.unit, types[c.unit]).inputs}[c.input]
         scales[c.target] = by_unit.get(signal.unit, 0.0)
     return scales
@@ -132,32 +142,52 @@ def fmu_paths(roles_types: Mapping[str, str], fmu_dir: Path | None) -> dict[str,
 def open_units(
     scenario: Any, settings: CosimSettings, fmu_dir: Path | None = None
 ) -> Iterator[tuple[dict[str, Any], dict[str, bool], dict[str, bool]]]:
-    """The scenario's units on the chosen backend, with their feedthrough and
-    input-interpolation flags; FMU instances are freed on exit."""
+    """The scenario's units on the chosen backend, and its foreign FMUs (always through
+    fmpy), with their feedthrough and input-interpolation flags; FMU instances are freed
+    on exit."""
+    from .fmu_unit import FmuUnit
+
     params = unit_parameters(scenario, settings)
     types = {role: u.type for role, u in scenario.system.units.items()}
     classes = {role: unit_class(role, t) for role, t in types.items()}
+    foreign = getattr(scenario, "fmus", {})
     feedthrough = {role: cls.feedthrough for role, cls in classes.items()}
-    if settings.backend == "direct":
-        units = {role: classes[role](name=role, **params[role]) for role in types}
-        yield units, feedthrough, {role: True for role in types}
-        return
-    from .fmu_unit import FmuUnit
-
-    paths = fmu_paths(types, fmu_dir)
+    feedthrough.update({n: f.feedthrough for n, f in foreign.items()})
+    t0 = scenario.sim["t_start"]
     units: dict[str, Any] = {}
+    interpolates: dict[str, bool] = {}
     try:
-        for role in types:
-            units[role] = FmuUnit(
-                paths[role], name=role, params=params[role], start_time=scenario.sim["t_start"]
-            )
-        interpolates = {
-            role: bool(u.md.coSimulation.canInterpolateInputs) for role, u in units.items()
-        }
+        if settings.backend == "direct":
+            for role in types:
+                units[role] = classes[role](name=role, **params[role])
+                interpolates[role] = True
+        else:
+            paths = fmu_paths(types, fmu_dir)
+            for role in types:
+                units[role] = FmuUnit(paths[role], name=role, params=params[role], start_time=t0)
+                interpolates[role] = bool(units[role].md.coSimulation.canInterpolateInputs)
+        for name, f in foreign.items():
+            units[name] = FmuUnit(f.path, name=name, params=f.start, start_time=t0)
+            interpolates[name] = f.can_interpolate
         yield units, feedthrough, interpolates
     finally:
         for unit in units.values():
-            unit.close()
+            close = getattr(unit, "close", None)
+            if close is not None:
+                close()
+
+
+def check_rollback(scenario: Any, settings: CosimSettings) -> None:
+    """A foreign FMU that cannot save its state cannot be rolled back: refuse settings
+    that need rollback (error control, iteration, located events) up front."""
+    needs = settings.adaptive or settings.iterations > 1 or settings.events == "locate"
+    for name, f in getattr(scenario, "fmus", {}).items():
+        if needs and not f.can_get_set_state:
+            raise CosimError(
+                f"fmus.{name}: {f.path.name} cannot get and set its state, which rollback "
+                "needs; run it with cosim.adaptive = false, cosim.iterations = 1 and "
+                'cosim.events = "step" (or "off")'
+            )
 
 
 def output_times(scenario: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -193,6 +223,7 @@ def run_cosim(
     period = scenario.system.forcing_period
     if not math.isfinite(period) or period <= 0.0:
         raise ValueError("the scenario has no forcing period to scale the macro step by")
+    check_rollback(scenario, settings)
     with open_units(scenario, settings, fmu_dir) as (units, feedthrough, interpolates):
         master = Master(
             units,

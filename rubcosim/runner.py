@@ -114,6 +114,12 @@ def strobe_times(scenario: Scenario) -> np.ndarray:
 
 
 def run_scenario(scenario: Scenario, engine: str | None = None) -> ScenarioRun:
+    if scenario.fmus:
+        name = next(iter(scenario.fmus))
+        raise ScenarioError(
+            f"fmus.{name}: the monolithic engines cannot simulate a foreign FMU; run the "
+            "scenario as a co-simulation (rubcosim run --backend direct or fmu)"
+        )
     sim = scenario.sim
     step = sim["output_step"] or (sim["t_end"] - sim["t_start"]) / 1000.0
     grid = output_grid(sim["t_start"], sim["t_end"], step)

@@ -29,6 +29,7 @@ from typing import Any
 from rubcosim.components.catalog import UNIT_TYPES
 from rubcosim.components.parameters import ParameterError
 from rubcosim.orchestrator.connections import CouplingError
+from rubcosim.orchestrator.foreign import ForeignFmu, ForeignFmuError, foreign_fmu
 from rubcosim.orchestrator.settings import CosimSettings, SettingsError, cosim_settings
 from rubcosim.reference.assemble import DEFAULT_CHATTER_TOL, System, build_system, make_unit
 from rubcosim.reference.simulate import ENGINES, MIN_RTOL
@@ -54,7 +55,7 @@ PLOT_KINDS = ("orbit", "timeseries", "poincare")
 SCENARIO_KEYS = ("name", "description")
 MAX_EVENTS_LIMIT = 10_000_000
 MAX_OUTPUT_POINTS = 10_000_000
-TOP_LEVEL = ("scenario", "sim", "units", "outputs", "plots", "cosim", "connections")
+TOP_LEVEL = ("scenario", "sim", "units", "fmus", "outputs", "plots", "cosim", "connections")
 
 
 @dataclass
@@ -70,11 +71,20 @@ class Scenario:
     parameters: dict[str, Any] = field(default_factory=dict)
     cosim: CosimSettings = field(default_factory=CosimSettings)
     connections: dict[str, Any] = field(default_factory=dict)
+    fmus: dict[str, ForeignFmu] = field(default_factory=dict)
 
     @property
     def outputs(self) -> list[str]:
         """Names of the recorded outputs."""
-        return list(self.record) if self.record else list(self.system.output_names)
+        if self.record:
+            return list(self.record)
+        foreign = [f"{n}.{o}" for n, f in self.fmus.items() for o in f.record]
+        return [*self.system.output_names, *foreign]
+
+    @property
+    def unit_names(self) -> list[str]:
+        """Every unit of a co-simulation: the rubcosim units, then the foreign FMUs."""
+        return [*self.system.units, *self.fmus]
 
 
 def parse_override(text: str) -> tuple[str, str, Any]:
@@ -185,6 +195,13 @@ def build_scenario(
             raise ScenarioError(
                 f"units.{role}.type is required (one of {', '.join(UNIT_TYPES[role])})"
             )
+    fmus_raw = {
+        name: dict(_check_table(f"[fmus.{name}]", table))
+        for name, table in _check_table("[fmus]", data.get("fmus", {})).items()
+    }
+    for name in fmus_raw:
+        if name in units:
+            raise ScenarioError(f"fmus.{name}: the name is already a unit of [units]")
     sim_raw = dict(_check_table("[sim]", data.get("sim", {})))
     cosim_raw = dict(_check_table("[cosim]", data.get("cosim", {})))
     connections: dict[str, Any] = {}
@@ -206,8 +223,13 @@ def build_scenario(
             sim_raw[name] = value
         elif role in units:
             units[role][name] = value
+        elif role in fmus_raw:
+            start = fmus_raw[role].setdefault("start", {})
+            if not isinstance(start, dict):
+                raise ScenarioError(f"fmus.{role}.start must be a table of start values")
+            start[name] = value
         else:
-            known = ", ".join(["sim", "cosim", *units])
+            known = ", ".join(["sim", "cosim", *units, *fmus_raw])
             raise ScenarioError(
                 f"--set {role}.{name}: unit {role!r} is not in this scenario (known: {known})"
             )
@@ -224,6 +246,15 @@ def build_scenario(
         system = build_system(built, chatter_tol=sim["chatter_tol"])
     except ParameterError as exc:
         raise ScenarioError(str(exc)) from None
+    base_dir = Path(source).parent if source else Path.cwd()
+    try:
+        fmus = {name: foreign_fmu(name, t, base_dir) for name, t in fmus_raw.items()}
+    except ForeignFmuError as exc:
+        raise ScenarioError(str(exc)) from None
+    available_outputs = [
+        *system.output_names,
+        *(f"{n}.{o}" for n, f in fmus.items() for o in f.outputs),
+    ]
     outputs = _check_table("[outputs]", data.get("outputs", {}))
     unknown = sorted(set(outputs) - {"record"})
     if unknown:
@@ -232,8 +263,8 @@ def build_scenario(
     if record is not None and not record:
         raise ScenarioError("outputs.record is empty: name at least one output, or leave it out")
     for name in record or []:
-        if name not in system.output_names:
-            available = ", ".join(system.output_names)
+        if name not in available_outputs:
+            available = ", ".join(available_outputs)
             raise ScenarioError(
                 f"outputs.record: {name!r} is not an output (available: {available})"
             )
@@ -249,8 +280,8 @@ def build_scenario(
         if kind in ("orbit", "poincare") and len(names) != 2:
             raise ScenarioError(f"plots.{kind} needs exactly two output names [x, y]")
         for name in names:
-            if name not in system.output_names:
-                available = ", ".join(system.output_names)
+            if name not in available_outputs:
+                available = ", ".join(available_outputs)
                 raise ScenarioError(
                     f"plots.{kind}: {name!r} is not an output (available: {available})"
                 )
@@ -275,13 +306,14 @@ def build_scenario(
         parameters=parameters,
         cosim=cosim,
         connections=connections,
+        fmus=fmus,
     )
-    if cosim.order and sorted(cosim.order) != sorted(system.units):
+    if cosim.order and sorted(cosim.order) != sorted(scenario.unit_names):
         raise ScenarioError(
             f"cosim.order = {list(cosim.order)} must name every unit once "
-            f"({', '.join(system.units)})"
+            f"({', '.join(scenario.unit_names)})"
         )
-    if connections:
+    if connections or fmus:
         from rubcosim.orchestrator.assembly import scenario_connections
 
         try:

@@ -1,0 +1,110 @@
+"""Foreign FMUs: FMI 2.0 co-simulation FMUs not built by rubcosim, as units of a scenario.
+
+A scenario names them in ``[fmus.NAME]`` tables::
+
+    [fmus.ball]
+    path = "bouncing_ball.fmu"   # relative to the scenario file
+    start = { e = 0.8 }          # start values set before initialisation (optional)
+    record = ["h", "v"]          # outputs to record (optional; default: every output)
+
+The master steps them like any unit, through fmpy, whatever the backend of
+the rubcosim units (so ``--backend direct`` mixes in-process units and FMUs).
+Their inputs and outputs can be wired in ``[connections]``.  Whether an
+output depends on the inputs at the same instant is read from the model
+structure (outputs with no dependencies listed are assumed to depend on all
+inputs, as FMI 2.0 says).  The monolithic engines cannot simulate a foreign
+FMU, so such a scenario runs only as a co-simulation.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+KEYS = ("path", "start", "record")
+
+
+class ForeignFmuError(ValueError):
+    """A ``[fmus.NAME]`` table or the FMU it names is unusable; the message names the key."""
+
+
+@dataclass(frozen=True)
+class ForeignFmu:
+    """A foreign FMU as a scenario declares it, checked against its model description."""
+
+    name: str
+    path: Path
+    start: dict[str, Any] = field(default_factory=dict)
+    record: tuple[str, ...] = ()
+    inputs: tuple[str, ...] = ()
+    outputs: tuple[str, ...] = ()
+    feedthrough: bool = True
+    can_get_set_state: bool = False
+    can_interpolate: bool = False
+
+
+def foreign_fmu(name: str, table: Mapping[str, Any], base_dir: Path) -> ForeignFmu:
+    """Validate ``[fmus.<name>]``; a relative ``path`` is taken from ``base_dir``."""
+    from fmpy import read_model_description
+
+    where = f"fmus.{name}"
+    unknown = sorted(set(table) - set(KEYS))
+    if unknown:
+        raise ForeignFmuError(f"{where}.{unknown[0]} is not a key (known: {', '.join(KEYS)})")
+    raw = table.get("path")
+    if not isinstance(raw, str) or not raw:
+        raise ForeignFmuError(f"{where}.path is required: the FMU file")
+    path = Path(raw) if Path(raw).is_absolute() else base_dir / raw
+    if not path.is_file():
+        raise ForeignFmuError(f"{where}.path: {path} is not a file")
+    try:
+        md = read_model_description(str(path))
+    except Exception as exc:
+        raise ForeignFmuError(f"{where}.path: {path} is not a readable FMU ({exc})") from None
+    if md.fmiVersion != "2.0" or md.coSimulation is None:
+        raise ForeignFmuError(
+            f"{where}.path: {path.name} is not an FMI 2.0 co-simulation FMU "
+            f"(fmiVersion {md.fmiVersion}, co-simulation: {md.coSimulation is not None})"
+        )
+    variables = {v.name: v for v in md.modelVariables}
+    inputs = tuple(v.name for v in md.modelVariables if v.causality == "input")
+    outputs = tuple(v.name for v in md.modelVariables if v.causality == "output")
+    start = table.get("start", {})
+    if not isinstance(start, Mapping):
+        raise ForeignFmuError(f"{where}.start must be a table of start values")
+    for key in start:
+        var = variables.get(key)
+        if var is None or var.causality not in ("parameter", "input"):
+            raise ForeignFmuError(f"{where}.start.{key}: not a parameter or input of {path.name}")
+    record = table.get("record", list(outputs))
+    if not isinstance(record, list) or not all(isinstance(r, str) for r in record):
+        raise ForeignFmuError(f"{where}.record must be a list of output names")
+    for r in record:
+        if r not in outputs:
+            raise ForeignFmuError(
+                f"{where}.record: {r!r} is not an output of {path.name} "
+                f"(outputs: {', '.join(outputs)})"
+            )
+    return ForeignFmu(
+        name=name,
+        path=path,
+        start=dict(start),
+        record=tuple(record),
+        inputs=inputs,
+        outputs=outputs,
+        feedthrough=_feedthrough(md, inputs),
+        can_get_set_state=bool(md.coSimulation.canGetAndSetFMUstate),
+        can_interpolate=bool(md.coSimulation.canInterpolateInputs),
+    )
+
+
+def _feedthrough(md: Any, inputs: tuple[str, ...]) -> bool:
+    if not inputs:
+        return False
+    for unknown in md.outputs:
+        deps = unknown.dependencies
+        if deps is None or any(d.causality == "input" for d in deps):
+            return True
+    return False

@@ -1,0 +1,113 @@
+"""A foreign FMU (built without rubcosim) as a unit of a scenario, mixed with direct units."""
+
+from __future__ import annotations
+
+import math
+import shutil
+import sys
+import tomllib
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from rubcosim.cli import main
+from rubcosim.orchestrator.assembly import run_cosim
+from rubcosim.runner import run_scenario
+from rubcosim.scenario import ScenarioError, build_scenario, load_scenario
+
+EXAMPLE = Path(__file__).resolve().parent.parent / "examples" / "foreign_fmu"
+sys.path.insert(0, str(EXAMPLE))
+from build import build  # noqa: E402
+
+
+@pytest.fixture(scope="module")
+def example(tmp_path_factory):
+    """The example scenario and a freshly built bouncing-ball FMU beside it."""
+    d = tmp_path_factory.mktemp("foreign")
+    build(d / "bouncing_ball.fmu")
+    shutil.copy(EXAMPLE / "rotor_and_ball.toml", d)
+    return d / "rotor_and_ball.toml"
+
+
+def ball_height(t: np.ndarray, h0: float, e: float, g: float = 9.81) -> np.ndarray:
+    """Closed form of the bouncing ball dropped from rest at h0."""
+    out = np.empty_like(t)
+    for i, ti in enumerate(t):
+        t0, v = math.sqrt(2 * h0 / g), 0.0
+        if ti < t0:
+            out[i] = h0 - 0.5 * g * ti**2
+            continue
+        v = e * g * t0  # upward speed after the first bounce
+        while ti >= t0 + 2 * v / g and v > 1e-6:
+            t0 += 2 * v / g
+            v *= e
+        s = ti - t0
+        out[i] = v * s - 0.5 * g * s**2 if v > 1e-6 else 0.0
+    return out
+
+
+def test_a_foreign_fmu_runs_beside_direct_units_with_rollbacks(example):
+    sc = load_scenario(example)
+    assert "ball.h" in sc.outputs and sc.unit_names == ["rotor", "stator", "ball"]
+    r = run_cosim(sc)
+    assert r.ok, r.message
+    assert r.counters["events_impact"] >= 5 and r.counters["event_probes"] > 0  # rollbacks
+    h = r.output("ball.h")
+    assert np.max(np.abs(h - ball_height(r.t, 1e-4, 0.8))) < 1e-9
+    assert r.output("ball.bounces")[-1] >= 10
+    # the rotor sees nothing of the ball: the same as without it
+    alone = load_scenario(example.parent / "rotor_and_ball.toml")
+    alone.fmus.clear()
+    r0 = run_cosim(alone, record=["rotor.x"], times=r.t)
+    assert np.array_equal(r0.output("rotor.x"), r.output("rotor.x"))
+
+
+def test_foreign_fmu_outputs_can_be_wired(example):
+    # the ball's height as a (tiny) extra force on the disc: a connection from a foreign unit
+    sc = load_scenario(example, ["sim.t_end=0.01"])
+    sc.connections["rotor.fy"] = ["stator.fy", "ball.h"]
+    r = run_cosim(sc, record=["rotor.y", "ball.h"])
+    assert r.ok, r.message
+
+
+def test_foreign_fmu_scenario_errors_name_the_key(example):
+    data = tomllib.loads(example.read_text())
+    good = data["fmus"]["ball"]
+    bad = [
+        ({"path": "missing.fmu"}, "fmus.ball.path: .*missing.fmu is not a file"),
+        ({**good, "record": ["h", "speed"]}, "fmus.ball.record: 'speed' is not an output"),
+        ({**good, "start": {"mass": 1.0}}, "fmus.ball.start.mass: not a parameter"),
+        ({**good, "colour": 1}, "fmus.ball.colour is not a key"),
+        ({"start": {}}, "fmus.ball.path is required"),
+    ]
+    for table, message in bad:
+        with pytest.raises(ScenarioError, match=message):
+            build_scenario({**data, "fmus": {"ball": table}}, source=str(example))
+    with pytest.raises(ScenarioError, match="fmus.rotor: the name is already a unit"):
+        build_scenario({**data, "fmus": {"rotor": good}}, source=str(example))
+    # --set NAME.variable sets a start value
+    assert load_scenario(example, ["ball.h0=0.5"]).fmus["ball"].start == {"h0": 0.5, "e": 0.8}
+    with pytest.raises(ScenarioError, match="fmus.ball.start.wings"):
+        load_scenario(example, ["ball.wings=2"])
+    with pytest.raises(ScenarioError, match="monolithic engines cannot simulate a foreign FMU"):
+        run_scenario(load_scenario(example))
+
+
+def test_run_and_check_commands_with_a_foreign_fmu(example, tmp_path, capsys):
+    out = tmp_path / "run"
+    assert main(["run", str(example), "--backend", "direct", "--set", "ball.e=0.5",
+                 "--set", "sim.t_end=0.02", "--out", str(out)]) == 0  # fmt: skip
+    assert (out / "results.csv").read_text().splitlines()[0].count("ball.h") == 1
+    assert main(["check", str(example), "--out", str(tmp_path / "check")]) == 2
+    assert "foreign FMU" in capsys.readouterr().err
+
+
+def test_a_foreign_fmu_without_state_refuses_rollback(example):
+    sc = load_scenario(example, ["sim.t_end=0.01"])
+    sc.fmus["ball"] = replace(sc.fmus["ball"], can_get_set_state=False)
+    with pytest.raises(Exception, match="cannot get and set its state"):
+        run_cosim(sc)
+    r = run_cosim(sc, replace(sc.cosim, adaptive=False, events="step"))
+    assert r.ok, r.message
