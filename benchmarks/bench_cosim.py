@@ -86,7 +86,7 @@ def methods(quick: bool) -> list[Method]:
     """The compared methods; ``quick`` scans two values each (for a smoke run)."""
     rtols = (1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10)
     cosim_rtols = (1e-3, 1e-4, 1e-5, 1e-6, 1e-7)
-    fmu_rtols = (1e-3, 1e-4, 1e-5, 1e-6)
+    fmu_rtols = (1e-3, 1e-4, 1e-5, 1e-6, 1e-7)
     per_period = (100, 400, 1600, 6400, 25600)
     if quick:
         rtols, cosim_rtols, fmu_rtols, per_period = (

@@ -164,5 +164,6 @@ def _build_one(spec: FmuSpec, tmp: Path, bundle: str, digest: str, out: Path) ->
         )
         install_loader(Path(fmu))  # also normalises the archive: same sources, same bytes
     except Exception as exc:
+        target.unlink(missing_ok=True)  # never leave a half-built FMU to be loaded later
         raise BuildError(f"building {spec.identifier} failed: {exc}") from exc
     return Path(fmu)

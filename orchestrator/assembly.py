@@ -31,6 +31,7 @@ from .protocols import ElasticContact, EventProtocol, RigidContact
 from .settings import CosimSettings
 
 FMU_CACHE_ENV = "RUBCOSIM_FMU_DIR"
+DIVERGED = 100.0  # displacements past this many length scales: the run has diverged
 
 
 def unit_parameters(scenario: Any, settings: CosimSettings) -> dict[str, dict[str, Any]]:
@@ -83,26 +84,44 @@ def scenario_connections(scenario: Any) -> list[Connection]:
     return connections
 
 
-def connection_scales(scenario: Any, connections: list[Connection]) -> dict[str, float]:
-    """A nominal magnitude for every connected input, from the unit of measure its unit
-    declares and the system's scales (as the reference engines scale their absolute
-    tolerance): the length scale for m, the velocity scale for m/s, and mass times the
-    velocity scale times the frequency for N.  The master never measures a coupling
-    error against less: a signal that starts from zero has no size of its own yet."""
+def _measure_scales(scenario: Any) -> dict[str, float]:
+    """The system's scale for each unit of measure (as the reference engines scale their
+    absolute tolerance): the length scale for m, the velocity scale for m/s, and mass
+    times the velocity scale times the frequency for N."""
     system = scenario.system
     length = float(system.state_scale[0])
     vscale = float(system.velocity_scale)
     mass = float(system.units["rotor"].params["mass"]) if "rotor" in system.units else 1.0
-    by_unit = {"m": length, "m/s": vscale, "N": mass * vscale * vscale / length}
-    types = {role: u.type for role, u in system.units.items()}
-    scales = {}
+    return {"m": length, "m/s": vscale, "N": mass * vscale * vscale / length}
+
+
+def _input_measures(scenario: Any, connections: list[Connection]) -> dict[str, str]:
+    """The unit of measure of every connected input ("" for a foreign FMU's)."""
+    types = {role: u.type for role, u in scenario.system.units.items()}
+    measures = {}
     for c in connections:
         if c.unit not in types:  # a foreign FMU: no declared unit of measure to go by
-            scales[c.target] = 0.0
+            measures[c.target] = ""
             continue
         signal = {s.name: s for s in unit_class(c.unit, types[c.unit]).inputs}[c.input]
-        scales[c.target] = by_unit.get(signal.unit, 0.0)
-    return scales
+        measures[c.target] = signal.unit
+    return measures
+
+
+def connection_scales(scenario: Any, connections: list[Connection]) -> dict[str, float]:
+    """A nominal magnitude for every connected input, from the unit of measure its unit
+    declares (:func:`_measure_scales`).  The master never measures a coupling error
+    against less: a signal that starts from zero has no size of its own yet."""
+    scales = _measure_scales(scenario)
+    return {k: scales.get(m, 0.0) for k, m in _input_measures(scenario, connections).items()}
+
+
+def divergence_bounds(scenario: Any, connections: list[Connection]) -> dict[str, float]:
+    """For every connected displacement, the size past which the run has diverged:
+    ``DIVERGED`` times the length scale (a disc a hundred clearances off its stator)."""
+    length = _measure_scales(scenario)["m"]
+    measures = _input_measures(scenario, connections)
+    return {k: DIVERGED * length for k, m in measures.items() if m == "m"}
 
 
 def scenario_protocols(scenario: Any, settings: CosimSettings) -> list[EventProtocol]:
@@ -235,6 +254,7 @@ def run_cosim(
             scenario_protocols(scenario, settings),
             [r for r, t in types.items() if unit_class(r, t).records_left_limits],
             connection_scales(scenario, connections),
+            divergence_bounds(scenario, connections),
         )
         return master.run(
             scenario.sim["t_start"], scenario.sim["t_end"], times, record or scenario.outputs

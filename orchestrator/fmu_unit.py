@@ -27,6 +27,12 @@ from fmpy.fmi2 import (
 
 from rubcosim.components.unit import StepError
 
+# A pythonfmu FMU imports `pythonfmu` from its own resources unless the package is already
+# loaded, and that copy has no build binaries: load the installed one first, so that building
+# FMUs later in this process (the fmu backend builds missing ones) still works.
+with contextlib.suppress(ImportError):
+    import pythonfmu.builder  # noqa: F401
+
 FMI2_FATAL = 4
 
 

@@ -137,6 +137,7 @@ class Master:
         protocols: Sequence[EventProtocol] = (),
         left_limits: Sequence[str] = (),
         nominal: Mapping[str, float] | None = None,
+        bounds: Mapping[str, float] | None = None,
     ) -> None:
         self.units = dict(units)
         self.settings = settings.with_defaults(period)
@@ -145,6 +146,10 @@ class Master:
         self.protocols = list(protocols)
         self.left_limit_units = list(left_limits)
         self.nominal = dict(nominal or {})
+        # |value| past which a connection means the run diverged (e.g. a displacement of
+        # a hundred clearances)
+        self.bounds = dict(bounds or {})
+        self.source_of = {c.target: c.sources for c in connections}
         self.feedthrough = dict(feedthrough)
         self.eval_order = evaluation_order(list(self.units), self.connections, feedthrough)
         order = list(self.settings.order) or self.eval_order
@@ -581,6 +586,15 @@ class Master:
             for key, value in out.items():
                 if not math.isfinite(value):
                     raise CosimError(f"{name}.{key} = {value} at t = {self.time:.9g} s")
+        for target, bound in self.bounds.items():
+            value = self.hist[target][-1][1]
+            if abs(value) > bound:
+                sources = " + ".join(self.source_of[target])
+                raise CosimError(
+                    f"unstable: {sources} = {value:.3g} passed {bound:.3g} at t = "
+                    f"{self.time:.9g} s; the coupled model diverges (if the monolithic "
+                    "engines diverge too, the model itself is unstable)"
+                )
 
 
 def _secant_offset(ga: float, gb: float, h: float) -> float:

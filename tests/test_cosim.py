@@ -233,3 +233,12 @@ def test_a_tolerance_the_minimum_step_cannot_meet_stops_the_run_by_name():
     assert r.status == "failed", r.counters
     assert "cosim.min_step" in r.message and "the largest is on " in r.message
     assert r.t_reached < 0.05
+
+
+def test_a_diverging_model_is_reported_with_the_unit_and_the_time():
+    # deep penalty contact with mu beta = 6 > 2 z sqrt(1 + beta): backward whirl grows
+    over = ["stator.friction=0.3", "stator.clearance=1e-7", "sim.t_end=0.1"]
+    sc = load_scenario(SCENARIOS / "jeffcott_elastic_stator.toml", over)
+    r = run_cosim(sc, record=["rotor.x"])
+    assert r.status == "failed" and r.message.startswith("unstable: rotor.")
+    assert 0.02 < r.t_reached < 0.1 and f"{r.t_reached:.9g} s" in r.message

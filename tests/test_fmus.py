@@ -306,3 +306,21 @@ def test_build_fmus_command(tmp_path, capsys):
     assert "not a directory" in capsys.readouterr().err
     with pytest.raises(BuildRequestError):
         build_fmus(tmp_path / "q", only=["Nope"])
+
+
+def test_building_after_loading_an_fmu_in_the_same_process(built_fmus, tmp_path):
+    # a loaded pythonfmu FMU must not shadow the installed pythonfmu that builds FMUs
+    code = (
+        "import sys\n"
+        "from pathlib import Path\n"
+        "from rubcosim.orchestrator.fmu_unit import FmuUnit\n"
+        "from rubcosim.fmus.build import build_fmus\n"
+        "FmuUnit(sys.argv[1]).close()\n"
+        "print(build_fmus(Path(sys.argv[2]), only=['RubcosimLinearBearing'])[0])\n"
+    )
+    proc = subprocess.run(
+        [PYTHON, "-c", code, str(built_fmus["RubcosimLinearBearing"]), str(tmp_path)],
+        capture_output=True, text=True, timeout=300, check=False,
+    )  # fmt: skip
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert (tmp_path / "RubcosimLinearBearing.fmu").is_file()

@@ -1,0 +1,45 @@
+"""The benchmark scripts run end to end on a small selection (their numbers are not
+checked here: they go to BENCHMARKS.md from full runs)."""
+
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+
+import pytest
+
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "benchmarks"))
+import bench_cosim  # noqa: E402
+import stress_cosim  # noqa: E402
+
+
+def test_work_precision_benchmark_writes_its_table(tmp_path, capsys):
+    args = ["--quick", "--cases", "rigid", "--methods", "fast", "fixed+events",
+            "--repeats", "1", "--target", "1e-3", "--out", str(tmp_path)]  # fmt: skip
+    assert bench_cosim.main(args) == 0
+    data = json.loads((tmp_path / "cosim_wp.json").read_text())
+    points = data["cases"]["rigid"]["methods"]["fixed+events"]
+    assert len(points) == 2 and points[1]["error"] < points[0]["error"]
+    assert "| rigid | fast |" in (tmp_path / "cosim_wp.md").read_text()
+    assert (tmp_path / "cosim_wp.png").stat().st_size > 0
+    # --merge keeps what is there and adds the new method
+    assert bench_cosim.main([*args[:4], "accurate", *args[6:], "--merge"]) == 0
+    merged = json.loads((tmp_path / "cosim_wp.json").read_text())["cases"]["rigid"]
+    assert sorted(merged["methods"]) == ["accurate", "fast", "fixed+events"]
+    with pytest.raises(SystemExit):
+        bench_cosim.main(["--repeats", "0"])
+
+
+def test_cost_at_equal_error_takes_the_cheapest_run_below_the_target():
+    points = [{"error": 1e-3, "wall_s": 0.1}, {"error": 1e-7, "wall_s": 3.0},
+              {"error": 5e-7, "wall_s": 2.0}, {"failed": "x"}]  # fmt: skip
+    assert bench_cosim.cost_at(points, 1e-6)["wall_s"] == 2.0
+    assert bench_cosim.cost_at(points, 1e-9) is None
+
+
+def test_stress_script_runs_a_case_and_says_whether_it_behaved(tmp_path):
+    assert stress_cosim.main(["--only", "speed=2 wn", "--out", str(tmp_path)]) == 0
+    rows = json.loads((tmp_path / "stress.json").read_text())
+    assert rows[0]["passed"] and rows[0]["status"] == "ok" and rows[0]["rel_error"] < 1e-5
+    assert "| speed=2 wn |" in (tmp_path / "stress.md").read_text()
