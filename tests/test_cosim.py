@@ -242,3 +242,10 @@ def test_a_diverging_model_is_reported_with_the_unit_and_the_time():
     r = run_cosim(sc, record=["rotor.x"])
     assert r.status == "failed" and r.message.startswith("unstable: rotor.")
     assert 0.02 < r.t_reached < 0.1 and f"{r.t_reached:.9g} s" in r.message
+
+
+def test_a_unit_that_refuses_its_outputs_ends_the_run_with_its_reason():
+    sc = load_scenario(SCENARIOS / "two_mass_oilfilm_rub.toml")
+    h = sc.system.forcing_period / 100  # far too coarse for the oil film
+    r = run_cosim(sc, replace(sc.cosim, adaptive=False, step=h), record=["rotor.x"])
+    assert r.status == "failed" and "bearing wall" in r.message and "t = " in r.message
