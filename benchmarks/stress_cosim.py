@@ -98,9 +98,10 @@ def cases() -> list[Case]:
         ),
         Case(
             "unstable: backward whirl",
-            "penalty stator, beta = 20, friction 0.3: mu beta = 6 > 2 z sqrt(1 + beta) = 0.46",
+            "deep penalty contact (clearance 1e-7 m), beta = 20, friction 0.3: "
+            "mu beta = 6 > 2 z sqrt(1 + beta) = 0.46, 0.1 s",
             elastic,
-            ("stator.friction=0.3", "sim.t_end=2.0"),
+            ("stator.friction=0.3", "stator.clearance=1e-7", "sim.t_end=0.1"),
             "unstable",
         ),
     ]
