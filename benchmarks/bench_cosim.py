@@ -125,7 +125,7 @@ def methods(quick: bool) -> list[Method]:
     ]
 
 
-def displacement_error(ref: Any, names: list[str], values: Callable[[str], np.ndarray], rows):
+def displacement_error(ref: Any, values: Callable[[str], np.ndarray], rows: np.ndarray) -> float:
     """Largest |difference| of the rotor displacement over ``rows``, relative to the
     reference's largest |value|."""
     worst = 0.0
@@ -175,7 +175,7 @@ def bench_case(case: str, args: argparse.Namespace, out: dict[str, Any]) -> dict
                 walls = [wall]
                 while wall < QUICK_S and len(walls) < args.repeats:
                     walls.append(run_once(scenario, method.kind, times)[1])
-                err = displacement_error(ref, list(POSITIONS), lookup, rows)
+                err = displacement_error(ref, lookup, rows)
                 point = {"value": value, "error": err, "wall_s": statistics.median(walls)}
                 point["runs"] = len(walls)
                 point["steps"] = counters.get("steps", 0)

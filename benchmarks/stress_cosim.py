@@ -27,6 +27,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from bench_cosim import POSITIONS, displacement_error
 
 from rubcosim.orchestrator.assembly import output_times, run_cosim
 from rubcosim.runner import run_scenario
@@ -112,7 +113,7 @@ def run_case(case: Case) -> dict[str, Any]:
     sc = load_scenario(case.scenario, list(case.overrides))
     times, rows, _ = output_times(sc)
     wall = time.perf_counter()
-    co = run_cosim(sc, record=["rotor.x", "rotor.y"], times=times)
+    co = run_cosim(sc, record=list(POSITIONS), times=times)
     wall = time.perf_counter() - wall
     row: dict[str, Any] = {
         "case": case.name,
@@ -133,11 +134,7 @@ def run_case(case: Case) -> dict[str, Any]:
         n = min(len(co.t), ref.result.t.size)
         r = rows[rows < n]
         if r.size and ref.result.ok and co.ok:
-            row["rel_error"] = max(
-                float(np.max(np.abs(ref.result.output(k)[r] - co.output(k)[r])))
-                / float(np.max(np.abs(ref.result.output(k)[r])))
-                for k in ("rotor.x", "rotor.y")
-            )
+            row["rel_error"] = displacement_error(ref, co.output, r)
     if case.expect == "ok":
         row["passed"] = co.ok and row["finite"]
     else:

@@ -39,6 +39,11 @@ class StepError(RuntimeError):
     """A step could not be completed; the unit's state is what it was before the step."""
 
 
+class OutputError(StepError, ValueError):
+    """The state a step reached has no valid outputs (e.g. a journal outside its oil
+    film): a failed step to a master, a bad value to anyone else."""
+
+
 @dataclass(frozen=True)
 class Signal:
     """An input or output of a unit: name, unit of measure, meaning, type and start value."""
@@ -191,8 +196,12 @@ class Unit:
             self.set_input(name, value)
 
     def get_outputs(self) -> dict[str, float]:
-        """Output values at the current time for the current inputs."""
-        return self._outputs()
+        """Output values at the current time for the current inputs; :class:`OutputError`
+        (naming the unit and the time) where the model has none."""
+        try:
+            return self._outputs()
+        except (ValueError, ArithmeticError) as exc:
+            raise OutputError(f"{self.name}: no outputs at t = {self.time:.9g} s: {exc}") from exc
 
     def do_step(self, t: float, h: float) -> None:
         """Advance from ``t`` to ``t + h``; on failure restore the state and raise StepError."""

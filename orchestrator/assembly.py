@@ -69,7 +69,7 @@ def scenario_connections(scenario: Any) -> list[Connection]:
     types = {role: u.type for role, u in scenario.system.units.items()}
     connections = apply_table(default_connections(types), scenario.connections)
     classes = {role: unit_class(role, t) for role, t in types.items()}
-    foreign = getattr(scenario, "fmus", {})
+    foreign = scenario.fmus
     check_connections(
         connections,
         {
@@ -169,7 +169,7 @@ def open_units(
     params = unit_parameters(scenario, settings)
     types = {role: u.type for role, u in scenario.system.units.items()}
     classes = {role: unit_class(role, t) for role, t in types.items()}
-    foreign = getattr(scenario, "fmus", {})
+    foreign = scenario.fmus
     feedthrough = {role: cls.feedthrough for role, cls in classes.items()}
     feedthrough.update({n: f.feedthrough for n, f in foreign.items()})
     t0 = scenario.sim["t_start"]
@@ -200,7 +200,7 @@ def check_rollback(scenario: Any, settings: CosimSettings) -> None:
     """A foreign FMU that cannot save its state cannot be rolled back: refuse settings
     that need rollback (error control, iteration, located events) up front."""
     needs = settings.adaptive or settings.iterations > 1 or settings.events == "locate"
-    for name, f in getattr(scenario, "fmus", {}).items():
+    for name, f in scenario.fmus.items():
         if needs and not f.can_get_set_state:
             raise CosimError(
                 f"fmus.{name}: {f.path.name} cannot get and set its state, which rollback "

@@ -148,7 +148,11 @@ class FmuUnit:
         self._call("set inputs", self.set_values, values)
 
     def get_outputs(self) -> dict[str, Any]:
-        return self._call("get outputs", self.get_values, self.outputs)
+        """Every output; an FMU that cannot give them fails like a step (StepError)."""
+        try:
+            return self._call("get outputs", self.get_values, self.outputs)
+        except FmuError as exc:
+            raise StepError(f"{exc} at t = {self.time:.9g} s") from exc
 
     # --- stepping and state --------------------------------------------------------
     def do_step(self, t: float, h: float) -> None:

@@ -399,9 +399,6 @@ class Master:
             self._loop(t_end)
         except (CosimError, StepError) as exc:
             status, message = "failed", str(exc)
-        except (ValueError, ArithmeticError) as exc:
-            # a unit refused its outputs (e.g. a journal outside its oil film)
-            status, message = "failed", f"{exc} (t = {self.time:.9g} s)"
         n = len(self.output_times[: len(self.rows)])
         values = np.array(self.rows, dtype=float).reshape(n, len(self.record))
         return CosimResult(

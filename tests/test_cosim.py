@@ -249,3 +249,12 @@ def test_a_unit_that_refuses_its_outputs_ends_the_run_with_its_reason():
     h = sc.system.forcing_period / 100  # far too coarse for the oil film
     r = run_cosim(sc, replace(sc.cosim, adaptive=False, step=h), record=["rotor.x"])
     assert r.status == "failed" and "bearing wall" in r.message and "t = " in r.message
+
+
+def test_an_fmu_that_refuses_its_outputs_ends_the_run_the_same_way(built_fmus):
+    sc = load_scenario(SCENARIOS / "two_mass_oilfilm_rub.toml")
+    h = sc.system.forcing_period / 100
+    fmu_dir = next(iter(built_fmus.values())).parent
+    fixed = replace(sc.cosim, adaptive=False, step=h, backend="fmu")
+    r = run_cosim(sc, fixed, record=["rotor.x"], fmu_dir=fmu_dir)
+    assert r.status == "failed" and "get outputs" in r.message and "t = " in r.message
