@@ -148,19 +148,25 @@ def penalty_contact_force(
     rd: float,
     w: float,
 ) -> tuple[float, float, float]:
-    """Penalty contact force on the disc with Coulomb friction ``mu Fn`` against the slip.
+    """Penalty contact force on the disc with Coulomb friction ``mu max(Fn, 0)`` against
+    the slip.
 
     Stateless form (contact whenever ``dist > d``, friction sign from the
     slip), for a unit that sees only the relative position and velocity r, rv.
     With ``cc = 0`` and positive slip this is the Chu-Zhang force
     ``-kc (1 - d/e) [rx - mu ry, mu rx + ry]``.  Returns ``(fx, fy, Fn)``.
+
+    Friction follows the compressive part of the normal force only: in the
+    moment before separation the damper makes ``Fn`` pull (``Fn < 0``), and a
+    Coulomb force ``mu Fn`` would then push the disc along its slip.  The
+    reference engines clamp it the same way (``rubcosim.reference.system``).
     """
     fn, dist, nx, ny = penalty_normal_force(rx, ry, rvx, rvy, d, kc, cc)
     if dist <= d:
         return 0.0, 0.0, 0.0
     vs = slip_speed(rvx, rvy, nx, ny, rd, w)
     sgn = 1.0 if vs > 0.0 else (-1.0 if vs < 0.0 else 0.0)
-    fx, fy = contact_force_components(fn, -mu * fn * sgn, nx, ny)
+    fx, fy = contact_force_components(fn, -mu * max(fn, 0.0) * sgn, nx, ny)
     return fx, fy, fn
 
 

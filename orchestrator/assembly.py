@@ -161,9 +161,9 @@ def fmu_paths(roles_types: Mapping[str, str], fmu_dir: Path | None) -> dict[str,
 def open_units(
     scenario: Any, settings: CosimSettings, fmu_dir: Path | None = None
 ) -> Iterator[tuple[dict[str, Any], dict[str, bool], dict[str, bool]]]:
-    """The scenario's units on the chosen backend, and its foreign FMUs (always through
-    fmpy), with their feedthrough and input-interpolation flags; FMU instances are freed
-    on exit."""
+    """The scenario's units on the chosen backend (those in ``cosim.fmu_units`` as FMUs
+    whatever the backend), and its foreign FMUs (always through fmpy), with their
+    feedthrough and input-interpolation flags; FMU instances are freed on exit."""
     from .fmu_unit import FmuUnit
 
     params = unit_parameters(scenario, settings)
@@ -175,16 +175,17 @@ def open_units(
     t0 = scenario.sim["t_start"]
     units: dict[str, Any] = {}
     interpolates: dict[str, bool] = {}
+    as_fmu = {r for r in types if settings.backend == "fmu" or r in settings.fmu_units}
     try:
-        if settings.backend == "direct":
-            for role in types:
-                units[role] = classes[role](name=role, **params[role])
-                interpolates[role] = True
-        else:
-            paths = fmu_paths(types, fmu_dir)
-            for role in types:
+        fmu_types = {r: types[r] for r in as_fmu}
+        paths = fmu_paths(fmu_types, fmu_dir) if as_fmu else {}
+        for role in types:
+            if role in as_fmu:
                 units[role] = FmuUnit(paths[role], name=role, params=params[role], start_time=t0)
                 interpolates[role] = bool(units[role].md.coSimulation.canInterpolateInputs)
+            else:
+                units[role] = classes[role](name=role, **params[role])
+                interpolates[role] = True
         for name, f in foreign.items():
             units[name] = FmuUnit(f.path, name=name, params=f.start, start_time=t0)
             interpolates[name] = f.can_interpolate

@@ -25,6 +25,7 @@ class CosimSettings:
     """
 
     backend: str = "direct"  # "direct" (in-process units) or "fmu" (FMUs through fmpy)
+    fmu_units: tuple[str, ...] = ()  # units run as FMUs whatever the backend (mixed runs)
     algorithm: str = "gauss-seidel"  # or "jacobi"
     extrapolation: int = 2  # polynomial order of the coupled inputs over a step: 0, 1, 2
     adaptive: bool = True  # macro step from the coupling error estimate (PI control)
@@ -100,9 +101,11 @@ def cosim_settings(raw: Mapping[str, Any]) -> CosimSettings:
             if not isinstance(value, bool):
                 raise SettingsError(f"cosim.adaptive = {value!r} must be true or false")
             v[key] = value
-        elif key == "order":
+        elif key in ("order", "fmu_units"):
             if not isinstance(value, list) or not all(isinstance(s, str) for s in value):
-                raise SettingsError("cosim.order must be a list of unit names")
+                raise SettingsError(f"cosim.{key} must be a list of unit names")
+            if len(set(value)) != len(value):
+                raise SettingsError(f"cosim.{key} = {value!r} names a unit twice")
             v[key] = tuple(value)
         elif key in ("rtol", "iteration_tol", "event_tol", "chatter_tol", "unit_rtol"):
             v[key] = _number(key, value, 0.0, 1.0)

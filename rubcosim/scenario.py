@@ -313,6 +313,13 @@ def build_scenario(
             f"cosim.order = {list(cosim.order)} must name every unit once "
             f"({', '.join(scenario.unit_names)})"
         )
+    own_units = list(scenario.system.units)
+    strays = [n for n in cosim.fmu_units if n not in own_units]
+    if strays:
+        raise ScenarioError(
+            f"cosim.fmu_units names {strays[0]!r}, which is not one of the scenario's own "
+            f"units ({', '.join(own_units)})"
+        )
     if connections or fmus:
         from rubcosim.orchestrator.assembly import scenario_connections
 

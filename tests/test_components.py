@@ -119,6 +119,14 @@ def test_penalty_force_is_chu_zhang_form_for_positive_slip():
     assert penalty_contact_force(0.5e-4, 0.0, 1.0, 1.0, d, kc, 1.0, mu, 0.0, 0.0) == (0.0, 0.0, 0.0)
 
 
+def test_penalty_friction_follows_only_the_compressive_normal_force():
+    # separating fast, the damper makes the normal force pull: no friction then (a
+    # Coulomb force mu Fn would push the disc along its slip)
+    kc, d, mu, cc = 5e6, 1e-4, 0.2, 2e4
+    fx, fy, fn = penalty_contact_force(1.001e-4, 0.0, -1.0, 0.5, d, kc, cc, mu, 0.05, 300.0)
+    assert fn < 0.0 and fy == 0.0 and fx == pytest.approx(-fn)
+
+
 def test_contact_geometry_at_centre_is_safe():
     assert contact_geometry(0.0, 0.0) == (0.0, 1.0, 0.0)
 

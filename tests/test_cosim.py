@@ -57,6 +57,20 @@ def test_cosimulation_matches_the_reference(name):
         assert report["impact_time_max_diff_s"] < 1e-8
 
 
+def test_stiff_penalty_contact_with_releases_matches_the_reference():
+    # kc = 1000 k: contacts end in releases where the damper pulls; the unit and the
+    # reference must both drop friction there (a sign slip once cost 1e-4)
+    sc = load_scenario(
+        SCENARIOS / "jeffcott_elastic_stator.toml",
+        ["stator.contact_stiffness=1e9", "sim.t_end=0.03"],
+    )
+    report, ref, co, rows = compare(sc)
+    assert report["status"] == "ok", report["message"]
+    assert co.counters["events_contact_off"] >= 3  # releases happened
+    assert co.counters["events"] == ref.result.counters["events"]
+    assert report["worst_rel_error"] < 1e-6, report["outputs"]
+
+
 def _smooth_scenario():
     """Two-mass rotor in a linear bearing: smooth, stiffly coupled through the bearing."""
     return build_scenario(
@@ -153,6 +167,30 @@ def test_fmu_backend_matches_direct(built_fmus):
     assert abs(fmu.counters["steps"] - direct.counters["steps"]) <= 0.05 * direct.counters["steps"]
     x_d, x_f = direct.output("rotor.x"), fmu.output("rotor.x")
     assert np.max(np.abs(x_d - x_f)) < 1e-6 * np.max(np.abs(x_d))
+
+
+def test_mixed_run_with_one_unit_as_fmu_matches_direct(built_fmus):
+    # the rigid stator as an FMU, the rotor in-process: the impact reset crosses the FMI
+    sc = load_scenario(
+        SCENARIOS / "jeffcott_rigid_stator.toml", ["sim.t_end=0.03", 'cosim.fmu_units=["stator"]']
+    )
+    fmu_dir = next(iter(built_fmus.values())).parent
+    direct = run_cosim(sc, replace(sc.cosim, fmu_units=()))
+    mixed = run_cosim(sc, fmu_dir=fmu_dir)
+    assert mixed.ok, mixed.message
+    assert mixed.counters["events_impact"] == direct.counters["events_impact"] >= 3
+    x_d, x_m = direct.output("rotor.x"), mixed.output("rotor.x")
+    assert np.max(np.abs(x_d - x_m)) < 1e-6 * np.max(np.abs(x_d))
+
+
+def test_fmu_units_must_name_own_units():
+    scen = SCENARIOS / "jeffcott_rigid_stator.toml"
+    with pytest.raises(ScenarioError, match="cosim.fmu_units names 'casing'"):
+        load_scenario(scen, ['cosim.fmu_units=["casing"]'])
+    with pytest.raises(ScenarioError, match="cosim.fmu_units = .* names a unit twice"):
+        load_scenario(scen, ['cosim.fmu_units=["rotor", "rotor"]'])
+    with pytest.raises(ScenarioError, match="cosim.fmu_units must be a list"):
+        load_scenario(scen, ['cosim.fmu_units="rotor"'])
 
 
 def test_cli_check_and_run_with_a_backend(tmp_path, capsys):

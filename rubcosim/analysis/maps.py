@@ -1,0 +1,375 @@
+"""Stroboscopic Poincaré maps on the ``fast`` engine, compiled, one point or many.
+
+The section is the fixed forcing phase ``t = t0 + k T`` (T the forcing
+period).  Each period is one call of the ``fast`` engine's compiled
+integrator from inside a compiled loop, so a sweep or a cell mapping pays no
+Python per period.  The discrete mode (free, sliding, stuck...) is carried
+from one period to the next with the state.
+
+Impacts per period count rigid impacts and contact onsets of elastic stops
+and stators (``KIND_IMPACT`` and ``KIND_CONTACT_ON`` events): the ``m`` of an
+``n-m`` motion.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numba as nb
+import numpy as np
+
+from rubcosim.reference import system as S
+from rubcosim.reference.assemble import System
+from rubcosim.reference.core import C_EVENTS, C_STATUS, N_COUNTERS, STATUS_MESSAGES, STATUS_OK
+from rubcosim.reference.fast import integrate
+
+from .errors import MapError
+
+DEFAULT_RTOL = 1e-9
+DEFAULT_MAX_EVENTS = 20_000  # per forcing period: a chattering sequence stays well below
+
+
+@nb.njit(cache=True)
+def _period_events(evlog, n_events):
+    """Impacts and contact onsets among the first ``n_events`` logged events."""
+    kinds = evlog[1]
+    m = 0
+    for i in range(min(n_events, kinds.shape[0])):
+        if kinds[i] == S.KIND_IMPACT or kinds[i] == S.KIND_CONTACT_ON:
+            m += 1
+    return m
+
+
+@nb.njit(cache=True)
+def _new_log(max_events, n):
+    return (
+        np.empty(max_events),
+        np.empty(max_events, dtype=np.int64),
+        np.empty(max_events, dtype=np.int64),
+        np.empty(max_events, dtype=np.int64),
+        np.empty((max_events, n)),
+    )
+
+
+@nb.njit(cache=True)
+def strobe_run(
+    y0,
+    mode0,
+    t0,
+    period,
+    n_skip,
+    n_keep,
+    p,
+    ip,
+    rtol,
+    atol,
+    max_step,
+    max_events,
+    points,
+    impacts,
+    modes,
+):
+    """Integrate ``n_skip + n_keep`` periods from ``(t0, y0, mode0)``.
+
+    Writes the state at the end of each of the last ``n_keep`` periods to
+    ``points[k]``, that period's impacts to ``impacts[k]`` and the discrete
+    mode there to ``modes[k]``.  Returns
+    ``(status, periods_done, mode)``; the state after the last period done is
+    ``points[periods_done - n_skip - 1]`` when ``periods_done > n_skip``.
+    """
+    n = y0.shape[0]
+    y = y0.copy()
+    y_end = np.empty(n)
+    mode = mode0
+    t_eval = np.empty(0)
+    rec = np.empty((0, 0))
+    evlog = _new_log(max_events, n)
+    queue = np.zeros(1)
+    qmeta = np.zeros(3, dtype=np.int64)
+    cnt = np.zeros(N_COUNTERS, dtype=np.int64)
+    for k in range(n_skip + n_keep):
+        cnt[:] = 0
+        qmeta[:] = 0
+        t_a = t0 + k * period
+        t_b = t0 + (k + 1) * period
+        t, mode = integrate(
+            y,
+            mode,
+            t_a,
+            t_b,
+            p,
+            ip,
+            rtol,
+            atol,
+            max_step,
+            t_eval,
+            rec,
+            evlog,
+            None,
+            queue,
+            qmeta,
+            cnt,
+            y_end,
+        )
+        if cnt[C_STATUS] != STATUS_OK:
+            return cnt[C_STATUS], k, mode
+        for i in range(n):
+            y[i] = y_end[i]
+        if k >= n_skip:
+            for i in range(n):
+                points[k - n_skip, i] = y[i]
+            impacts[k - n_skip] = _period_events(evlog, cnt[C_EVENTS])
+            modes[k - n_skip] = mode
+    return STATUS_OK, n_skip + n_keep, mode
+
+
+@nb.njit(cache=True)
+def map_many(
+    Y0,
+    modes0,
+    t0,
+    period,
+    n_periods,
+    p,
+    ip,
+    rtol,
+    atol,
+    max_step,
+    max_events,
+    Y1,
+    modes1,
+    impacts,
+    status,
+):
+    """Map every row of ``Y0`` through ``n_periods`` forcing periods (cell mapping's kernel).
+
+    ``impacts[j]`` counts all impacts along the way; ``status[j]`` is the
+    engine's status (0: ok) and row j of ``Y1`` is NaN when it is not 0.
+    """
+    n = Y0.shape[1]
+    pts = np.empty((1, n))
+    imp = np.zeros(1, dtype=np.int64)
+    md = np.zeros(1, dtype=np.int64)
+    for j in range(Y0.shape[0]):
+        total = 0
+        y = Y0[j].copy()
+        mode = modes0[j]
+        st = STATUS_OK
+        for k in range(n_periods):
+            st, done, mode = strobe_run(
+                y,
+                mode,
+                t0 + k * period,
+                period,
+                0,
+                1,
+                p,
+                ip,
+                rtol,
+                atol,
+                max_step,
+                max_events,
+                pts,
+                imp,
+                md,
+            )
+            if st != STATUS_OK:
+                break
+            total += imp[0]
+            for i in range(n):
+                y[i] = pts[0, i]
+        status[j] = st
+        impacts[j] = total
+        modes1[j] = mode
+        for i in range(n):
+            Y1[j, i] = y[i] if st == STATUS_OK else np.nan
+
+
+@nb.njit(cache=True)
+def _admissible(Y, modes, p, ip, out):
+    g = np.empty(S.N_EVENTS)
+    dirs = np.empty(S.N_EVENTS, dtype=np.int64)
+    rates = np.empty(S.N_EVENTS, dtype=np.int64)
+    yd = np.zeros(S.N_DELAYED)
+    for j in range(Y.shape[0]):
+        S.events(0.0, Y[j], yd, modes[j], p, ip, g, dirs, rates)
+        out[j] = True
+        for k in range(S.N_EVENTS):
+            if dirs[k] == -1 and g[k] < 0.0:
+                out[j] = False
+
+
+def admissible(smap: StroboscopicMap, states: np.ndarray) -> np.ndarray:
+    """Whether each state (row, in the system's initial mode) is outside every rigid
+    obstacle: a state beyond a rigid stop or stator is not a state of the system."""
+    Y = np.ascontiguousarray(np.atleast_2d(np.asarray(states, dtype=float)))
+    modes = np.full(Y.shape[0], smap.system.mode0, dtype=np.int64)
+    out = np.empty(Y.shape[0], dtype=np.bool_)
+    _admissible(Y, modes, smap._p, smap._ip, out)
+    return out
+
+
+@dataclass(frozen=True)
+class Orbit:
+    """Stroboscopic samples of a motion: ``points[k]`` is the state at ``t0 + (skip + k + 1) T``.
+
+    ``impacts[k]`` counts the impacts (and contact onsets) in the period
+    ending at ``points[k]``; ``modes[k]`` is the discrete mode there (0 free;
+    else in sustained contact, or stuck).  ``status`` is the engine's (0: ok); on failure
+    ``points`` holds only the periods done.
+    """
+
+    points: np.ndarray
+    impacts: np.ndarray
+    modes: np.ndarray
+    mode: int
+    status: int
+    message: str
+    period: float
+
+    @property
+    def ok(self) -> bool:
+        return self.status == STATUS_OK
+
+    @property
+    def final_state(self) -> np.ndarray:
+        return self.points[-1]
+
+
+class StroboscopicMap:
+    """The fixed-phase Poincaré map of a monolithic system (no delay).
+
+    ``rtol`` is the ``fast`` engine's relative tolerance; the absolute one is
+    ``rtol`` times each state's scale (as in :func:`rubcosim.reference.simulate.simulate`).
+    """
+
+    def __init__(
+        self,
+        system: System,
+        rtol: float = DEFAULT_RTOL,
+        max_events: int = DEFAULT_MAX_EVENTS,
+    ) -> None:
+        if system.has_delay:
+            raise MapError(
+                "units.controller: a delayed-feedback system has an infinite-dimensional state "
+                "(its history); stroboscopic maps, sweeps and cell mapping take delay-free "
+                "systems only"
+            )
+        if not (isinstance(rtol, float | int) and 1e-14 <= rtol < 1.0):
+            raise MapError(f"rtol = {rtol!r} must be in [1e-14, 1)")
+        if not (isinstance(max_events, int) and max_events >= 1):
+            raise MapError(f"max_events = {max_events!r} must be a positive integer")
+        period = system.forcing_period
+        if not (math.isfinite(period) and period > 0.0):
+            raise MapError("the system has no forcing period: no stroboscopic section")
+        self.system = system
+        self.period = period
+        self.rtol = float(rtol)
+        self.max_events = max_events
+        self.atol = np.ascontiguousarray(self.rtol * system.state_scale)
+        self.scale = np.asarray(system.state_scale, dtype=float)
+        self._p = tuple(float(v) for v in system.p)
+        self._ip = tuple(int(v) for v in system.ip)
+
+    @property
+    def n_state(self) -> int:
+        return self.system.n_state
+
+    def orbit(
+        self,
+        y0: np.ndarray | None = None,
+        *,
+        skip: int = 0,
+        keep: int = 1,
+        mode: int | None = None,
+        t0: float = 0.0,
+    ) -> Orbit:
+        """Iterate the map ``skip + keep`` times from ``y0`` (default: the system's initial
+        state at ``t0``) and keep the last ``keep`` points."""
+        if not (isinstance(skip, int) and skip >= 0):
+            raise MapError(f"skip = {skip!r} must be an integer >= 0")
+        if not (isinstance(keep, int) and keep >= 1):
+            raise MapError(f"keep = {keep!r} must be an integer >= 1")
+        y = self._state(y0)
+        m = self.system.mode0 if mode is None else int(mode)
+        points = np.full((keep, self.n_state), np.nan)
+        impacts = np.zeros(keep, dtype=np.int64)
+        modes = np.zeros(keep, dtype=np.int64)
+        status, done, m_end = strobe_run(
+            y,
+            m,
+            float(t0),
+            self.period,
+            skip,
+            keep,
+            self._p,
+            self._ip,
+            self.rtol,
+            self.atol,
+            math.inf,
+            self.max_events,
+            points,
+            impacts,
+            modes,
+        )
+        kept = max(0, done - skip)
+        message = STATUS_MESSAGES[status]
+        if status != STATUS_OK:
+            message = f"{message} (in forcing period {done + 1})"
+        return Orbit(
+            points[:kept],
+            impacts[:kept],
+            modes[:kept],
+            int(m_end),
+            int(status),
+            message,
+            self.period,
+        )
+
+    def map(
+        self, states: np.ndarray, periods: int = 1, modes: np.ndarray | None = None
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Map many states (rows) through ``periods`` periods from phase 0.
+
+        Returns ``(images, modes, impacts, status)``; a row whose run failed
+        (status != 0) is NaN.
+        """
+        Y0 = np.ascontiguousarray(np.atleast_2d(np.asarray(states, dtype=float)))
+        if Y0.shape[1] != self.n_state:
+            raise MapError(f"states have {Y0.shape[1]} columns; the system has {self.n_state}")
+        if not (isinstance(periods, int) and periods >= 1):
+            raise MapError(f"periods = {periods!r} must be an integer >= 1")
+        N = Y0.shape[0]
+        m0 = np.full(N, self.system.mode0, dtype=np.int64) if modes is None else modes
+        m0 = np.ascontiguousarray(m0, dtype=np.int64)
+        Y1 = np.empty_like(Y0)
+        m1 = np.empty(N, dtype=np.int64)
+        impacts = np.empty(N, dtype=np.int64)
+        status = np.empty(N, dtype=np.int64)
+        map_many(
+            Y0,
+            m0,
+            0.0,
+            self.period,
+            periods,
+            self._p,
+            self._ip,
+            self.rtol,
+            self.atol,
+            math.inf,
+            self.max_events,
+            Y1,
+            m1,
+            impacts,
+            status,
+        )
+        return Y1, m1, impacts, status
+
+    def _state(self, y0: np.ndarray | None) -> np.ndarray:
+        y = self.system.y0 if y0 is None else np.asarray(y0, dtype=float)
+        if y.shape != (self.n_state,):
+            raise MapError(f"y0 has shape {y.shape}; the system's state has {self.n_state}")
+        if not np.all(np.isfinite(y)):
+            raise MapError("y0 is not finite")
+        return np.ascontiguousarray(y, dtype=float)

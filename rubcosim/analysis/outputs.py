@@ -1,0 +1,216 @@
+"""Files the analysis commands write: data (npz, CSV), report.json and figures."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .cellmap import LABEL_BOUNDARY, LABEL_ESCAPE, Basins
+from .sweep import SweepResult
+
+
+def checkpoint_dir(out: str | Path) -> Path:
+    """Where an analysis writing to ``out`` keeps its checkpoint: beside it, so that
+    ``out`` itself is only ever a complete result."""
+    out = Path(out)
+    return out.parent / f".{out.name}.checkpoint"
+
+
+def _json(path: Path, data: Any) -> None:
+    path.write_text(json.dumps(data, indent=2) + "\n", encoding="utf-8")
+
+
+def write_sweep(result: SweepResult, tmp: Path, scenario_name: str, plot_state: int = 0) -> None:
+    """``sweep.npz``, ``sweep.csv`` (one row per stroboscopic point), ``report.json``
+    (per value: n-m, distinct points) and ``bifurcation.png``."""
+    dirs = list(result.points)
+    np.savez_compressed(
+        tmp / "sweep.npz",
+        values=result.values,
+        state_names=np.array(result.state_names),
+        **{f"points_{d}": result.points[d] for d in dirs},
+        **{f"impacts_{d}": result.impacts[d] for d in dirs},
+        **{f"modes_{d}": result.modes[d] for d in dirs},
+        **{f"status_{d}": result.status[d] for d in dirs},
+    )
+    rows = []
+    for d_i, d in enumerate(dirs):
+        n_v, n_k, n = result.points[d].shape
+        vi, ki = np.meshgrid(np.arange(n_v), np.arange(n_k), indexing="ij")
+        rows.append(
+            np.column_stack(
+                [
+                    np.full(vi.size, d_i),
+                    result.values[vi.ravel()],
+                    ki.ravel(),
+                    result.points[d].reshape(-1, n),
+                    result.impacts[d].ravel(),
+                ]
+            )
+        )
+    header = ["direction", result.param.name, "period_index", *result.state_names, "impacts"]
+    np.savetxt(
+        tmp / "sweep.csv",
+        np.vstack(rows),
+        delimiter=",",
+        header=",".join(header),
+        comments="",
+        fmt="%.12g",
+    )
+    per_dir = {d: result.classify(d) for d in dirs}
+    _json(
+        tmp / "report.json",
+        {
+            "scenario": scenario_name,
+            "parameter": result.param.name,
+            "values": result.values.tolist(),
+            "periods": result.periods,
+            "discard": result.discard,
+            "classification_tolerance_in_state_scales": 1e-6,
+            "directions": per_dir,
+            "failed_values": {d: int(np.sum(result.status[d] != 0)) for d in dirs},
+            "csv_direction_codes": {str(i): d for i, d in enumerate(dirs)},
+        },
+    )
+    _plot_sweep(result, tmp / "bifurcation.png", plot_state)
+
+
+def _plot_sweep(result: SweepResult, path: Path, state: int) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    dirs = list(result.points)
+    fig, axes = plt.subplots(len(dirs), 1, figsize=(8, 3.6 * len(dirs)), squeeze=False)
+    vmax = max(1, max(int(result.impacts[d].max()) for d in dirs))
+    for ax, d in zip(axes[:, 0], dirs, strict=True):
+        pts = result.points[d][:, :, state]
+        x = np.repeat(result.values, pts.shape[1])
+        sc = ax.scatter(
+            x,
+            pts.ravel(),
+            c=result.impacts[d].ravel(),
+            s=0.6,
+            cmap="viridis",
+            vmin=0,
+            vmax=vmax,
+            rasterized=True,
+        )
+        ax.set_ylabel(f"{result.state_names[state]} at t = kT")
+        ax.set_title(f"sweep {d}")
+        fig.colorbar(sc, ax=ax, label="impacts per period")
+    axes[-1, 0].set_xlabel(result.param.name)
+    fig.tight_layout()
+    fig.savefig(path, dpi=130)
+    plt.close(fig)
+
+
+def write_basins(basins: Basins, tmp: Path, scenario_name: str, info: dict[str, Any]) -> None:
+    """``basins.npz``, ``report.json`` and ``basins.png``."""
+    g = basins.grid
+    np.savez_compressed(
+        tmp / "basins.npz",
+        labels=basins.labels,
+        attractor_of=basins.attractor_of,
+        reach=basins.reach,
+        image=basins.image.astype(np.int32),
+        centres=g.centres(),
+        grid=np.array([g.nx, g.nv]),
+        region=np.array([g.x0, g.x1, g.v0, g.v1]),
+        saddle_cells=np.concatenate(basins.saddles) if basins.saddles else np.zeros(0, int),
+    )
+    counts = basins.counts()
+    attractors = []
+    for k in range(basins.n_attractors):
+        cells = np.flatnonzero(basins.attractor_of == k)
+        attractors.append(
+            {
+                "id": k,
+                "cells": cells.tolist(),
+                "chain_period": basins.chain_periods[k],
+                "basin_cells": counts["basins"][k],
+                **basins.motions[k],
+            }
+        )
+    _json(
+        tmp / "report.json",
+        {
+            "scenario": scenario_name,
+            "grid": [g.nx, g.nv],
+            "region": {"x": [g.x0, g.x1], "v": [g.v0, g.v1]},
+            "samples_per_cell": basins.samples,
+            "seed": basins.seed,
+            "cell_numbering": "c = j * nx + i (i: x index from x0, j: x' index from v0); "
+            "c = nx * nv is the sink",
+            "labels": f"basin k >= 0; {LABEL_BOUNDARY} boundary; {LABEL_ESCAPE} escape",
+            "attractors": attractors,
+            "counts": {
+                "basins": counts["basins"],
+                "boundary": counts["boundary"],
+                "escape": counts["escape"],
+            },
+            "saddles": [
+                {"cells": s.tolist(), "centres": g.centres(s).tolist()} for s in basins.saddles
+            ],
+            **info,
+        },
+    )
+    _plot_basins(basins, tmp / "basins.png", info.get("state_names", ["x", "x'"]))
+
+
+def _plot_basins(basins: Basins, path: Path, names: list[str]) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from matplotlib.colors import ListedColormap
+
+    g = basins.grid
+    k = basins.n_attractors
+    # 0: escape (white), 1: boundary (black), 2..: basins
+    palette = ["#ffffff", "#000000", *plt.cm.Pastel1.colors[: max(k, 1)]][: k + 2]
+    img = np.where(basins.labels >= 0, basins.labels + 2, 0)
+    img[basins.labels == LABEL_BOUNDARY] = 1
+    img = img.reshape(g.nv, g.nx)
+    fig, ax = plt.subplots(figsize=(7, 6))
+    ax.imshow(
+        img,
+        origin="lower",
+        extent=(g.x0, g.x1, g.v0, g.v1),
+        aspect="auto",
+        cmap=ListedColormap(palette),
+        vmin=0,
+        vmax=k + 1,
+        interpolation="nearest",
+    )
+    marks = "o^sDvP*"
+    for a in range(k):
+        c = g.centres(np.flatnonzero(basins.attractor_of == a))
+        ax.plot(c[:, 0], c[:, 1], ".", ms=2, color=plt.cm.Set1(a % 9))
+        pts = np.asarray(basins.motions[a].get("poincare_points", []))
+        if pts.size:
+            ax.plot(
+                pts[:, 0],
+                pts[:, 1],
+                marks[a % len(marks)],
+                color=plt.cm.Set1(a % 9),
+                mec="k",
+                ms=8,
+                label=f"attractor {a}: {basins.motions[a]['label']}",
+            )
+    for s in basins.saddles:
+        c = g.centres(s)
+        ax.plot(c[:, 0], c[:, 1], "x", color="red", ms=4)
+    if basins.saddles:
+        ax.plot([], [], "x", color="red", label="saddle cells")
+    ax.set_xlabel(names[0])
+    ax.set_ylabel(names[1])
+    ax.set_title("basins of attraction (black: boundary cells)")
+    ax.legend(loc="upper right", fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=130)
+    plt.close(fig)

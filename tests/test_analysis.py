@@ -1,0 +1,296 @@
+"""Stroboscopic maps, classification, Floquet multipliers, sweeps and cell mapping,
+each checked against an answer known independently of the code under test."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from rubcosim.analysis import cellmap, sweep
+from rubcosim.analysis.cellmap import LABEL_BOUNDARY, Grid, cell_mapping
+from rubcosim.analysis.errors import CheckpointError, MapError
+from rubcosim.analysis.floquet import FLOQUET_RTOL, floquet
+from rubcosim.analysis.maps import StroboscopicMap, admissible
+from rubcosim.analysis.motion import NOT_PERIODIC, classify, distinct_count
+from rubcosim.analysis.parallel import Checkpoint, InlineExecutor, run_tasks
+from rubcosim.analysis.sweep import ParamRange, parse_param
+from rubcosim.cli import main
+from rubcosim.scenario import ScenarioError, load_scenario
+
+SCENARIOS = Path(__file__).resolve().parent.parent / "scenarios"
+DUFFING = SCENARIOS / "impact_duffing.toml"
+# x'' + 0.1 x' + x + x^3 = 2 cos(2 t), no barrier: two period-1 attractors coexist
+# (found by direct simulation from a grid of initial states, see the tests below)
+TWO_WELL = ['oscillator.stop="none"', "oscillator.forcing_amplitude=2.0"]
+SMALL, LARGE = np.array([-0.7881, 0.1294]), np.array([2.243, 1.4116])
+
+
+def duffing_map(overrides=(), rtol=1e-9):
+    return StroboscopicMap(load_scenario(DUFFING, list(overrides)).system, rtol=rtol)
+
+
+def test_classify_labels_period_and_impacts():
+    scale = np.array([1.0, 1.0])
+    two = np.array([[0.1, 0.2], [0.3, -0.1]] * 5)
+    motion = classify(two, np.array([1, 0] * 5), scale)
+    assert (motion.period, motion.impacts, motion.label, motion.periodic) == (2, 1, "2-1", True)
+    rng = np.random.default_rng(1)
+    chaos = classify(rng.random((40, 2)), np.ones(40, dtype=int), scale)
+    assert chaos.label == NOT_PERIODIC and chaos.distinct == 40 and not chaos.periodic
+    assert distinct_count(np.array([[0.0, 0.0], [0.0, 5e-7], [1.0, 0.0]]), scale) == 2
+    with pytest.raises(ValueError, match="points must be"):
+        classify(np.zeros((1, 2)), np.zeros(1), scale)
+    with pytest.raises(ValueError, match="not finite"):
+        classify(np.full((4, 2), np.nan), np.zeros(4), scale)
+
+
+def test_duffing_orbits_reach_the_two_attractors_the_scenario_documents():
+    smap = duffing_map()
+    big = smap.orbit(skip=100, keep=10)
+    small = smap.orbit(np.zeros(2), skip=300, keep=10)
+    assert big.ok and classify(big.points, big.impacts, smap.scale).label == "1-1"
+    assert classify(small.points, small.impacts, smap.scale, tol=1e-5).label == "1-0"
+    # the batch kernel maps a state exactly as the orbit does
+    images, modes, impacts, status = smap.map(np.vstack([big.points[0], small.points[0]]))
+    assert np.array_equal(status, [0, 0]) and np.array_equal(impacts, [1, 0])
+    assert np.allclose(images, [big.points[1], small.points[1]], rtol=0, atol=1e-12)
+    assert np.array_equal(modes, [0, 0]) and np.array_equal(big.modes, np.zeros(10))
+
+
+def test_map_refuses_what_it_cannot_take():
+    with pytest.raises(MapError, match="units.controller"):
+        StroboscopicMap(load_scenario(SCENARIOS / "jeffcott_delayed_feedback.toml").system)
+    with pytest.raises(MapError, match="rtol"):
+        duffing_map(rtol=2.0)
+    smap = duffing_map()
+    with pytest.raises(MapError, match="y0 has shape"):
+        smap.orbit(np.zeros(3))
+    with pytest.raises(MapError, match="keep"):
+        smap.orbit(keep=0)
+    with pytest.raises(MapError, match="columns"):
+        smap.map(np.zeros((2, 3)))
+    # beyond the rigid barrier at x = 1 is not a state of the system
+    assert admissible(smap, np.array([[0.5, 0.0], [1.5, 0.0]])).tolist() == [True, False]
+
+
+def test_floquet_product_is_restitution_squared_times_damping_decay():
+    # Liouville: the flow contracts areas by exp(-b T); each impact's saltation matrix
+    # has determinant r^2.  The 1-1 orbit's multipliers multiply to r^2 exp(-b T).
+    smap = duffing_map(rtol=FLOQUET_RTOL)
+    start = smap.orbit(skip=100, keep=1).final_state
+    f = floquet(smap, start, 1)
+    assert f.impacts == 1 and f.residual < 1e-10 and f.stable
+    assert np.prod(f.multipliers).real == pytest.approx(0.8**2 * math.exp(-0.1 * math.pi), 1e-7)
+
+
+def test_floquet_of_a_linear_oscillator_matches_its_closed_form():
+    # x'' + b x' + x = cos(2 t), barrier out of reach: multipliers exp((-b/2 +- i wd) T)
+    smap = StroboscopicMap(
+        load_scenario(SCENARIOS / "impact_duffing.toml",
+                      ["oscillator.cubic_stiffness=0.0", 'oscillator.stop="none"']).system,
+        rtol=FLOQUET_RTOL,
+    )  # fmt: skip
+    f = floquet(smap, np.zeros(2), 1)
+    T, b = math.pi, 0.1
+    expected = np.exp(complex(-b / 2, math.sqrt(1 - b * b / 4)) * T)
+    assert f.impacts == 0 and f.kind == "neimark-sacker"
+    found = sorted(f.multipliers, key=lambda z: z.imag)
+    assert np.allclose(found, [expected.conjugate(), expected], atol=1e-7)
+
+
+def test_floquet_refuses_a_grazing_orbit():
+    # a free orbit that just touches the barrier: perturbations change its impacts
+    smap = duffing_map(["oscillator.cubic_stiffness=0.0"], rtol=FLOQUET_RTOL)
+    free = StroboscopicMap(
+        load_scenario(DUFFING, ["oscillator.cubic_stiffness=0.0", 'oscillator.stop="none"']).system,
+        rtol=FLOQUET_RTOL,
+    )
+    fixed = floquet(free, np.zeros(2), 1).state
+    # amplitude of x'' + 0.1 x' + x = cos(2t): 1/sqrt(9 + 0.04); barrier at that amplitude
+    amp = 1.0 / math.sqrt(9.0 + 0.04)
+    grazing = StroboscopicMap(
+        load_scenario(DUFFING, ["oscillator.cubic_stiffness=0.0", f"oscillator.barrier={amp!r}"]
+                      ).system, rtol=FLOQUET_RTOL)  # fmt: skip
+    with pytest.raises(MapError, match="grazing"):
+        floquet(grazing, fixed, 1, max_iter=0)
+    assert smap.n_state == 2
+
+
+def test_cell_mapping_of_a_linear_impact_oscillator_finds_one_attractor():
+    smap = StroboscopicMap(load_scenario(SCENARIOS / "impact_oscillator_linear.toml").system, 1e-7)
+    grid = Grid(24, 24, -7.0, 0.0, -7.0, 7.0)  # up to the barrier at x = 0
+    basins = cell_mapping(smap, grid, samples=4, seed=3, workers=1)
+    counts = basins.counts()
+    assert basins.n_attractors == 1 and counts["boundary"] == 0
+    assert counts["basins"][0] + counts["escape"] == grid.n_cells
+    assert basins.motions[0]["points_in_group"] == 1.0
+    # the 1-1 orbit found by simulating the scenario, independently of the cells
+    lin = smap.orbit(skip=200, keep=4)
+    assert basins.motions[0]["label"] == "1-1"
+    assert np.allclose(basins.motions[0]["poincare_points"][0], lin.final_state, atol=1e-6)
+
+
+def test_cell_mapping_finds_the_two_coexisting_duffing_attractors():
+    smap = duffing_map(TWO_WELL, rtol=1e-7)
+    # a region of moderate energy: from far out the hardening spring throws points
+    # out of any region in one period (escape cells); there both basins show at 30x30
+    grid = Grid(30, 30, -2.0, 4.0, -4.0, 4.0)
+    basins = cell_mapping(smap, grid, samples=4, seed=0, workers=2)
+    assert basins.n_attractors == 2
+    found = sorted((m["poincare_points"][0] for m in basins.motions), key=lambda p: p[0])
+    assert np.allclose(found[0], SMALL, atol=1e-3) and np.allclose(found[1], LARGE, atol=1e-3)
+    assert all(m["label"] == "1-0" for m in basins.motions)
+    counts = basins.counts()
+    assert min(counts["basins"]) > 10 and counts["escape"] > 0
+    # each attractor's own cells lie in its basin; boundary cells reach both
+    for k in range(2):
+        assert np.all(basins.labels[basins.attractor_of == k] == k)
+    assert np.all(basins.reach[basins.labels == LABEL_BOUNDARY].sum(axis=1) >= 2)
+    # the same samples through a Dask cluster give the same graph
+    from dask.distributed import LocalCluster
+
+    with LocalCluster(n_workers=1, threads_per_worker=1, processes=False) as cluster:
+        remote = cell_mapping(smap, grid, 4, 0, scheduler=cluster.scheduler_address)
+    assert np.array_equal(remote.image, basins.image)
+
+
+def test_cell_mapping_resumes_from_its_checkpoint(tmp_path, monkeypatch):
+    smap = duffing_map(TWO_WELL, rtol=1e-6)
+    grid = Grid(12, 12, -4.0, 4.0, -6.0, 6.0)
+    ckpt = tmp_path / "ck"
+    first = cell_mapping(smap, grid, 2, 0, workers=1, checkpoint_dir=ckpt, chunk=40)
+    done = sorted(ckpt.glob("cells_*.npz"))
+    assert len(done) == 4
+    done[-1].unlink()  # as if interrupted before the last task finished
+    calls = []
+    real = cellmap.map_cells
+    monkeypatch.setattr(cellmap, "map_cells", lambda *a: calls.append(a[2]) or real(*a))
+    again = cell_mapping(smap, grid, 2, 0, workers=1, checkpoint_dir=ckpt, chunk=40)
+    assert calls == [120] and np.array_equal(again.image, first.image)
+    with pytest.raises(CheckpointError, match="other settings"):
+        cell_mapping(smap, grid, 3, 0, workers=1, checkpoint_dir=ckpt, chunk=40)
+    with pytest.raises(MapError, match="2-D section"):
+        cell_mapping(StroboscopicMap(load_scenario(SCENARIOS / "jeffcott_rigid_stator.toml")
+                                     .system), grid, 2)  # fmt: skip
+    with pytest.raises(ValueError, match="--samples"):
+        cell_mapping(smap, grid, 0)
+    with pytest.raises(ValueError, match="--region"):
+        Grid(4, 4, 1.0, 0.0, 0.0, 1.0)
+
+
+def test_run_tasks_follows_up_and_saves_every_result(tmp_path):
+    ck = Checkpoint(tmp_path / "c", {"a": 1})
+
+    def double(x):
+        return {"x": np.array(2 * x)}
+
+    out = run_tasks(double, [("t_0", (1,))], InlineExecutor(), ck,
+                    lambda k, r: (f"t_{int(k[2:]) + 1}", (int(r["x"]),)) if k != "t_2" else None,
+                    progress=False)  # fmt: skip
+    assert {k: int(v["x"]) for k, v in out.items()} == {"t_0": 2, "t_1": 4, "t_2": 8}
+    assert ck.done() == {"t_0", "t_1", "t_2"} and int(ck.load("t_2")["x"]) == 8
+    assert Checkpoint(tmp_path / "c", {"a": 1}).done() == ck.done()
+
+
+def test_parse_param():
+    assert parse_param("rotor.speed=300:400:11") == ParamRange("rotor.speed", 300.0, 400.0, 11)
+    for bad in ("rotor.speed=300:400", "speed=1:2:3", "rotor.speed=a:2:3", "rotor.speed=1:1:5",
+                "rotor.speed=1:2:1"):  # fmt: skip
+        with pytest.raises(ScenarioError, match="--param"):
+            parse_param(bad)
+
+
+def test_sweep_shows_the_duffing_hysteresis_by_continuation(tmp_path):
+    sc = load_scenario(DUFFING, TWO_WELL)
+    param = parse_param("oscillator.forcing_frequency=1.6:2.4:5")
+    res = sweep.sweep(sc, param, overrides=TWO_WELL, periods=8, discard=150, direction="both",
+                      workers=2, block=2, checkpoint_dir=tmp_path / "ck")  # fmt: skip
+    at2 = 2  # the value 2.0, where the two attractors coexist
+    up, down = res.points["up"][at2, -1], res.points["down"][at2, -1]
+    # up the frequency the motion stays on the large branch; down, on the small one
+    assert np.allclose(up, LARGE, atol=1e-3) and np.allclose(down, SMALL, atol=1e-3)
+    labels = {d: [c["label"] for c in res.classify(d)] for d in ("up", "down")}
+    assert labels["up"] == labels["down"] == ["1-0"] * 5
+    assert all(res.status[d].tolist() == [0] * 5 for d in ("up", "down"))
+    with pytest.raises(ValueError, match="--periods"):
+        sweep.sweep(sc, param, periods=1)
+    with pytest.raises(ValueError, match="--direction"):
+        sweep.sweep(sc, param, direction="sideways")
+    with pytest.raises(ScenarioError, match="restitution"):
+        sweep.sweep(load_scenario(DUFFING), parse_param("oscillator.restitution=0.5:1.5:3"))
+
+
+def test_sweep_resumes_without_recomputing(tmp_path, monkeypatch):
+    sc = load_scenario(DUFFING)
+    param = parse_param("oscillator.forcing_amplitude=0.9:1.1:4")
+    kw = {"periods": 4, "discard": 20, "workers": 1, "block": 2, "checkpoint_dir": tmp_path}
+    first = sweep.sweep(sc, param, **kw)
+    (tmp_path / "up0_00001.npz").unlink()
+    calls = []
+    real = sweep.run_block
+    monkeypatch.setattr(sweep, "run_block", lambda *a: calls.append(len(a[0])) or real(*a))
+    again = sweep.sweep(sc, param, **kw)
+    assert calls == [2] and np.array_equal(again.points["up"], first.points["up"])
+    split = sweep.sweep(sc, param, periods=4, discard=20, workers=1, chains=2)
+    assert split.points["up"].shape == (4, 4, 2) and np.all(split.status["up"] == 0)
+
+
+def test_cli_sweep_writes_data_plot_and_report(tmp_path, capsys):
+    out = tmp_path / "sweep"
+    args = ["sweep", str(DUFFING), "--param", "oscillator.forcing_amplitude=0.8:1.2:4",
+            "--periods", "6", "--discard", "120", "--direction", "both", "--workers", "1",
+            "--out", str(out), "--no-progress", "--rtol", "1e-8", "--chains", "1",
+            "--plot-state", "oscillator.v"]  # fmt: skip
+    assert main(args) == 0
+    report = json.loads((out / "report.json").read_text())
+    assert report["parameter"] == "oscillator.forcing_amplitude" and len(report["values"]) == 4
+    assert [c["label"] for c in report["directions"]["up"]] == ["1-1"] * 4
+    data = np.load(out / "sweep.npz")
+    assert data["points_up"].shape == (4, 6, 2) and (out / "bifurcation.png").stat().st_size
+    csv = np.loadtxt(out / "sweep.csv", delimiter=",", skiprows=1)
+    assert csv.shape == (2 * 4 * 6, 6)
+    assert not (tmp_path / ".sweep.checkpoint").exists()
+    assert "swept oscillator.forcing_amplitude" in capsys.readouterr().out
+    for bad, msg in [
+        (["--param", "oscillator.forcing_amplitude=1:2"], "--param"),
+        (["--plot-state", "rotor.x"], "--plot-state"),
+        (["--rtol", "5"], "--rtol"),
+    ]:
+        assert main([*args, *bad]) == 2, bad  # the last of a repeated flag wins
+        assert msg in capsys.readouterr().err
+    delayed = ["sweep", str(SCENARIOS / "jeffcott_delayed_feedback.toml"), "--param",
+               "rotor.speed=300:400:2", "--out", str(tmp_path / "d")]  # fmt: skip
+    assert main(delayed) == 2 and "units.controller" in capsys.readouterr().err
+
+
+def test_cli_basins_writes_data_plot_and_report(tmp_path, capsys):
+    out = tmp_path / "basins"
+    args = ["basins", str(DUFFING), "--set", TWO_WELL[0], "--set", TWO_WELL[1],
+            "--grid", "16x16", "--samples", "3", "--region=-4:4,-6:6", "--seed", "2",
+            "--workers", "1", "--out", str(out), "--no-progress"]  # fmt: skip
+    assert main(args) == 0
+    report = json.loads((out / "report.json").read_text())
+    assert report["grid"] == [16, 16] and report["seed"] == 2 and report["samples_per_cell"] == 3
+    assert len(report["attractors"]) >= 1 and "cell_numbering" in report
+    total = sum(report["counts"]["basins"]) + report["counts"]["boundary"]
+    assert total + report["counts"]["escape"] == 256
+    data = np.load(out / "basins.npz")
+    assert data["labels"].shape == (256,) and data["image"].shape == (256, 3)
+    assert (out / "basins.png").stat().st_size > 0
+    assert "attractor(s)" in capsys.readouterr().out
+    for bad, msg in [
+        (["--grid", "16by16"], "--grid"),
+        (["--region", "0:1"], "--region"),
+        (["--grid", "0x4"], "--grid"),
+    ]:
+        assert main([*args, *bad]) == 2, bad
+        assert msg in capsys.readouterr().err
+    rotor = ["basins", str(SCENARIOS / "jeffcott_rigid_stator.toml"), "--grid", "4x4",
+             "--samples", "1", "--region=-1:1,-1:1", "--out", str(tmp_path / "r")]  # fmt: skip
+    assert main(rotor) == 2 and "2-D section" in capsys.readouterr().err
+    assert main([*args[:-3], "--scheduler", "tcp://127.0.0.1:9", "--out", str(tmp_path / "s")]) == 2
+    assert "--scheduler" in capsys.readouterr().err
