@@ -133,6 +133,12 @@ def _analysis_parsers(sub: Any) -> None:
         help="independent continuation chains per direction (parallel)",
     )
     sw.add_argument(
+        "--grazing",
+        action="store_true",
+        help="locate each grazing between sweep values (impacts start or stop) and fit the "
+        "square-root law there",
+    )
+    sw.add_argument(
         "--plot-state",
         default=None,
         metavar="NAME",
@@ -205,9 +211,22 @@ def cmd_sweep(args: argparse.Namespace) -> int:
         chains=args.chains,
         progress=not args.no_progress,
     )
-    write_directory(out, lambda tmp: write_sweep(result, tmp, scenario.name, plot_state))
+    grazings = []
+    if args.grazing:
+        from .analysis.grazing import brackets, grazing
+
+        first = next(iter(result.points))
+        for lo, hi in brackets(result.values, result.impacts[first], result.status[first])[:5]:
+            lo, hi = min(lo, hi), max(lo, hi)
+            grazings.append(grazing(scenario.source, args.set, param.name, lo, hi).as_dict())
+    write_directory(out, lambda tmp: write_sweep(result, tmp, scenario.name, plot_state, grazings))
     shutil.rmtree(ckpt, ignore_errors=True)
     failed = {d: int((s != 0).sum()) for d, s in result.status.items()}
+    for g in grazings:
+        print(
+            f"grazing at {param.name} = {g['value']:.10g}: square-root law exponent "
+            f"{g['sqrt_law']['exponent']:.3f} (expected 0.5)"
+        )
     print(
         f"{scenario.name}: swept {param.name} over {param.count} values "
         f"({', '.join(result.points)}); failed values {failed} -> {out}"

@@ -90,10 +90,12 @@ def test_floquet_product_is_restitution_squared_times_damping_decay():
 def test_floquet_of_a_linear_oscillator_matches_its_closed_form():
     # x'' + b x' + x = cos(2 t), barrier out of reach: multipliers exp((-b/2 +- i wd) T)
     smap = StroboscopicMap(
-        load_scenario(SCENARIOS / "impact_duffing.toml",
-                      ["oscillator.cubic_stiffness=0.0", 'oscillator.stop="none"']).system,
+        load_scenario(
+            SCENARIOS / "impact_duffing.toml",
+            ["oscillator.cubic_stiffness=0.0", 'oscillator.stop="none"'],
+        ).system,
         rtol=FLOQUET_RTOL,
-    )  # fmt: skip
+    )
     f = floquet(smap, np.zeros(2), 1)
     T, b = math.pi, 0.1
     expected = np.exp(complex(-b / 2, math.sqrt(1 - b * b / 4)) * T)
@@ -113,8 +115,11 @@ def test_floquet_refuses_a_grazing_orbit():
     # amplitude of x'' + 0.1 x' + x = cos(2t): 1/sqrt(9 + 0.04); barrier at that amplitude
     amp = 1.0 / math.sqrt(9.0 + 0.04)
     grazing = StroboscopicMap(
-        load_scenario(DUFFING, ["oscillator.cubic_stiffness=0.0", f"oscillator.barrier={amp!r}"]
-                      ).system, rtol=FLOQUET_RTOL)  # fmt: skip
+        load_scenario(
+            DUFFING, ["oscillator.cubic_stiffness=0.0", f"oscillator.barrier={amp!r}"]
+        ).system,
+        rtol=FLOQUET_RTOL,
+    )
     with pytest.raises(MapError, match="grazing"):
         floquet(grazing, fixed, 1, max_iter=0)
     assert smap.n_state == 2
@@ -174,8 +179,9 @@ def test_cell_mapping_resumes_from_its_checkpoint(tmp_path, monkeypatch):
     with pytest.raises(CheckpointError, match="other settings"):
         cell_mapping(smap, grid, 3, 0, workers=1, checkpoint_dir=ckpt, chunk=40)
     with pytest.raises(MapError, match="2-D section"):
-        cell_mapping(StroboscopicMap(load_scenario(SCENARIOS / "jeffcott_rigid_stator.toml")
-                                     .system), grid, 2)  # fmt: skip
+        cell_mapping(
+            StroboscopicMap(load_scenario(SCENARIOS / "jeffcott_rigid_stator.toml").system), grid, 2
+        )
     with pytest.raises(ValueError, match="--samples"):
         cell_mapping(smap, grid, 0)
     with pytest.raises(ValueError, match="--region"):
@@ -188,9 +194,14 @@ def test_run_tasks_follows_up_and_saves_every_result(tmp_path):
     def double(x):
         return {"x": np.array(2 * x)}
 
-    out = run_tasks(double, [("t_0", (1,))], InlineExecutor(), ck,
-                    lambda k, r: (f"t_{int(k[2:]) + 1}", (int(r["x"]),)) if k != "t_2" else None,
-                    progress=False)  # fmt: skip
+    out = run_tasks(
+        double,
+        [("t_0", (1,))],
+        InlineExecutor(),
+        ck,
+        lambda k, r: (f"t_{int(k[2:]) + 1}", (int(r["x"]),)) if k != "t_2" else None,
+        progress=False,
+    )
     assert {k: int(v["x"]) for k, v in out.items()} == {"t_0": 2, "t_1": 4, "t_2": 8}
     assert ck.done() == {"t_0", "t_1", "t_2"} and int(ck.load("t_2")["x"]) == 8
     assert Checkpoint(tmp_path / "c", {"a": 1}).done() == ck.done()
@@ -198,8 +209,13 @@ def test_run_tasks_follows_up_and_saves_every_result(tmp_path):
 
 def test_parse_param():
     assert parse_param("rotor.speed=300:400:11") == ParamRange("rotor.speed", 300.0, 400.0, 11)
-    for bad in ("rotor.speed=300:400", "speed=1:2:3", "rotor.speed=a:2:3", "rotor.speed=1:1:5",
-                "rotor.speed=1:2:1"):  # fmt: skip
+    for bad in (
+        "rotor.speed=300:400",
+        "speed=1:2:3",
+        "rotor.speed=a:2:3",
+        "rotor.speed=1:1:5",
+        "rotor.speed=1:2:1",
+    ):
         with pytest.raises(ScenarioError, match="--param"):
             parse_param(bad)
 
@@ -207,8 +223,17 @@ def test_parse_param():
 def test_sweep_shows_the_duffing_hysteresis_by_continuation(tmp_path):
     sc = load_scenario(DUFFING, TWO_WELL)
     param = parse_param("oscillator.forcing_frequency=1.6:2.4:5")
-    res = sweep.sweep(sc, param, overrides=TWO_WELL, periods=8, discard=150, direction="both",
-                      workers=2, block=2, checkpoint_dir=tmp_path / "ck")  # fmt: skip
+    res = sweep.sweep(
+        sc,
+        param,
+        overrides=TWO_WELL,
+        periods=8,
+        discard=150,
+        direction="both",
+        workers=2,
+        block=2,
+        checkpoint_dir=tmp_path / "ck",
+    )
     at2 = 2  # the value 2.0, where the two attractors coexist
     up, down = res.points["up"][at2, -1], res.points["down"][at2, -1]
     # up the frequency the motion stays on the large branch; down, on the small one
@@ -241,10 +266,29 @@ def test_sweep_resumes_without_recomputing(tmp_path, monkeypatch):
 
 def test_cli_sweep_writes_data_plot_and_report(tmp_path, capsys):
     out = tmp_path / "sweep"
-    args = ["sweep", str(DUFFING), "--param", "oscillator.forcing_amplitude=0.8:1.2:4",
-            "--periods", "6", "--discard", "120", "--direction", "both", "--workers", "1",
-            "--out", str(out), "--no-progress", "--rtol", "1e-8", "--chains", "1",
-            "--plot-state", "oscillator.v"]  # fmt: skip
+    args = [
+        "sweep",
+        str(DUFFING),
+        "--param",
+        "oscillator.forcing_amplitude=0.8:1.2:4",
+        "--periods",
+        "6",
+        "--discard",
+        "120",
+        "--direction",
+        "both",
+        "--workers",
+        "1",
+        "--out",
+        str(out),
+        "--no-progress",
+        "--rtol",
+        "1e-8",
+        "--chains",
+        "1",
+        "--plot-state",
+        "oscillator.v",
+    ]
     assert main(args) == 0
     report = json.loads((out / "report.json").read_text())
     assert report["parameter"] == "oscillator.forcing_amplitude" and len(report["values"]) == 4
@@ -262,16 +306,39 @@ def test_cli_sweep_writes_data_plot_and_report(tmp_path, capsys):
     ]:
         assert main([*args, *bad]) == 2, bad  # the last of a repeated flag wins
         assert msg in capsys.readouterr().err
-    delayed = ["sweep", str(SCENARIOS / "jeffcott_delayed_feedback.toml"), "--param",
-               "rotor.speed=300:400:2", "--out", str(tmp_path / "d")]  # fmt: skip
+    delayed = [
+        "sweep",
+        str(SCENARIOS / "jeffcott_delayed_feedback.toml"),
+        "--param",
+        "rotor.speed=300:400:2",
+        "--out",
+        str(tmp_path / "d"),
+    ]
     assert main(delayed) == 2 and "units.controller" in capsys.readouterr().err
 
 
 def test_cli_basins_writes_data_plot_and_report(tmp_path, capsys):
     out = tmp_path / "basins"
-    args = ["basins", str(DUFFING), "--set", TWO_WELL[0], "--set", TWO_WELL[1],
-            "--grid", "16x16", "--samples", "3", "--region=-4:4,-6:6", "--seed", "2",
-            "--workers", "1", "--out", str(out), "--no-progress"]  # fmt: skip
+    args = [
+        "basins",
+        str(DUFFING),
+        "--set",
+        TWO_WELL[0],
+        "--set",
+        TWO_WELL[1],
+        "--grid",
+        "16x16",
+        "--samples",
+        "3",
+        "--region=-4:4,-6:6",
+        "--seed",
+        "2",
+        "--workers",
+        "1",
+        "--out",
+        str(out),
+        "--no-progress",
+    ]
     assert main(args) == 0
     report = json.loads((out / "report.json").read_text())
     assert report["grid"] == [16, 16] and report["seed"] == 2 and report["samples_per_cell"] == 3
@@ -289,8 +356,77 @@ def test_cli_basins_writes_data_plot_and_report(tmp_path, capsys):
     ]:
         assert main([*args, *bad]) == 2, bad
         assert msg in capsys.readouterr().err
-    rotor = ["basins", str(SCENARIOS / "jeffcott_rigid_stator.toml"), "--grid", "4x4",
-             "--samples", "1", "--region=-1:1,-1:1", "--out", str(tmp_path / "r")]  # fmt: skip
+    rotor = [
+        "basins",
+        str(SCENARIOS / "jeffcott_rigid_stator.toml"),
+        "--grid",
+        "4x4",
+        "--samples",
+        "1",
+        "--region=-1:1,-1:1",
+        "--out",
+        str(tmp_path / "r"),
+    ]
     assert main(rotor) == 2 and "2-D section" in capsys.readouterr().err
     assert main([*args[:-3], "--scheduler", "tcp://127.0.0.1:9", "--out", str(tmp_path / "s")]) == 2
     assert "--scheduler" in capsys.readouterr().err
+
+
+LINEAR = ["oscillator.cubic_stiffness=0.0"]  # x'' + 0.1 x' + x = F cos 2t, barrier at 1
+
+
+def test_grazing_is_located_where_the_free_amplitude_reaches_the_barrier():
+    from rubcosim.analysis.grazing import grazing
+
+    g = grazing(str(DUFFING), LINEAR, "oscillator.forcing_amplitude", 2.5, 3.5)
+    # free amplitude F / sqrt((1 - 4)^2 + 0.2^2) = 1 at F = sqrt(9.04)
+    assert g.value == pytest.approx(math.sqrt(9.04), rel=1e-8)
+    assert abs(g.normal_velocity) < 1e-6
+    assert g.exponent == pytest.approx(0.5, abs=0.02)
+    assert g.depths.size >= 6 and np.all(np.diff(g.deviations) > 0)
+
+
+def test_grazing_inputs_are_checked():
+    from rubcosim.analysis.errors import AnalysisError
+    from rubcosim.analysis.grazing import brackets, free_overrides, locate
+
+    imp = np.array([[0, 0], [0, 0], [1, 1], [1, 1]])
+    assert brackets(np.arange(4.0), imp, np.zeros(4)) == [(1.0, 2.0)]
+    assert brackets(np.arange(4.0), imp, np.array([0, 3, 0, 0])) == []
+    elastic = load_scenario(SCENARIOS / "jeffcott_elastic_stator.toml").system
+    with pytest.raises(AnalysisError, match="units.stator"):
+        free_overrides(elastic)
+    rigid = load_scenario(SCENARIOS / "jeffcott_rigid_stator.toml").system
+    assert free_overrides(rigid) == ["stator.clearance=100.0"]
+    with pytest.raises(AnalysisError, match="no grazing there"):
+        locate(str(DUFFING), LINEAR, "oscillator.forcing_amplitude", 1.0, 2.0)
+
+
+def test_cli_sweep_locates_grazing(tmp_path, capsys):
+    out = tmp_path / "g"
+    args = [
+        "sweep",
+        str(DUFFING),
+        "--set",
+        LINEAR[0],
+        "--set",
+        "oscillator.x0=0.0",
+        "--param",
+        "oscillator.forcing_amplitude=2.8:3.2:3",
+        "--periods",
+        "4",
+        "--discard",
+        "150",
+        "--workers",
+        "1",
+        "--grazing",
+        "--no-progress",
+        "--out",
+        str(out),
+    ]
+    assert main(args) == 0
+    report = json.loads((out / "report.json").read_text())
+    (g,) = report["grazing"]
+    assert g["value"] == pytest.approx(math.sqrt(9.04), rel=1e-8)
+    assert (out / "grazing.png").stat().st_size > 0
+    assert "square-root law exponent 0.5" in capsys.readouterr().out

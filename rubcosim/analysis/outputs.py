@@ -23,9 +23,16 @@ def _json(path: Path, data: Any) -> None:
     path.write_text(json.dumps(data, indent=2) + "\n", encoding="utf-8")
 
 
-def write_sweep(result: SweepResult, tmp: Path, scenario_name: str, plot_state: int = 0) -> None:
+def write_sweep(
+    result: SweepResult,
+    tmp: Path,
+    scenario_name: str,
+    plot_state: int = 0,
+    grazings: list[dict[str, Any]] | None = None,
+) -> None:
     """``sweep.npz``, ``sweep.csv`` (one row per stroboscopic point), ``report.json``
-    (per value: n-m, distinct points) and ``bifurcation.png``."""
+    (per value: n-m, distinct points; located grazings) and ``bifurcation.png``
+    (and ``grazing.png``, the square-root law, when grazings were located)."""
     dirs = list(result.points)
     np.savez_compressed(
         tmp / "sweep.npz",
@@ -73,9 +80,35 @@ def write_sweep(result: SweepResult, tmp: Path, scenario_name: str, plot_state: 
             "directions": per_dir,
             "failed_values": {d: int(np.sum(result.status[d] != 0)) for d in dirs},
             "csv_direction_codes": {str(i): d for i, d in enumerate(dirs)},
+            "grazing": grazings or [],
         },
     )
     _plot_sweep(result, tmp / "bifurcation.png", plot_state)
+    if grazings:
+        _plot_grazing(grazings, tmp / "grazing.png")
+
+
+def _plot_grazing(grazings: list[dict[str, Any]], path: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(6, 4.5))
+    for g in grazings:
+        law = g["sqrt_law"]
+        d, dev = np.asarray(law["depths"]), np.asarray(law["deviations"])
+        ax.loglog(
+            d, dev, "o", label=f"{g['parameter']} = {g['value']:.8g}: slope {law['exponent']:.3f}"
+        )
+        ax.loglog(d, dev[0] * np.sqrt(d / d[0]), "k--", lw=0.8)
+    ax.set_xlabel("penetration depth of the free orbit (length scales)")
+    ax.set_ylabel("|impacting map - free map| (state scales)")
+    ax.set_title("grazing: square-root law (dashed: slope 1/2)")
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=130)
+    plt.close(fig)
 
 
 def _plot_sweep(result: SweepResult, path: Path, state: int) -> None:

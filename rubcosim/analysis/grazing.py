@@ -1,0 +1,245 @@
+"""Grazing: where a non-impacting periodic motion first touches the obstacle, and the
+square-root law of the Poincaré map there.
+
+The *free* system is the scenario with its obstacle taken away (a rigid
+stop becomes no stop; a stator's clearance is made huge), so its orbit goes
+on through the obstacle and the signed minimum gap along its periodic orbit
+is a smooth function of the parameter.  Grazing is that minimum crossing
+zero; there the normal velocity (the gap's rate) is zero, because the gap
+is at a minimum.  The gap is the obstacle's event function evaluated by the
+model's own compiled code on the free orbit, sampled densely over a period
+and refined by a parabola through the smallest sample and its neighbours.
+
+Square-root law (Nordmark; the book's zero-time discontinuity map): at the
+grazing parameter, start from the grazing orbit's stroboscopic point moved
+so that the free orbit penetrates the obstacle by a depth ``delta``; the
+impacting map then differs from the free map by ``C sqrt(delta)``.  The
+exponent is fitted on a log-log line over depths from about 1e-7 to 1e-3 of
+the length scale.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numba as nb
+import numpy as np
+from scipy.optimize import brentq
+
+from rubcosim.reference import system as S
+from rubcosim.reference.assemble import System
+from rubcosim.reference.simulate import simulate
+from rubcosim.scenario import load_scenario
+
+from .errors import AnalysisError
+from .floquet import FLOQUET_RTOL, floquet
+from .maps import StroboscopicMap
+
+SAMPLES_PER_PERIOD = 4000
+DEPTHS = np.logspace(-7, -3, 9)  # penetration depths for the fit, in length scales
+
+
+@nb.njit(cache=True)
+def _gaps(Y, p, ip, gap, rate):
+    g = np.empty(S.N_EVENTS)
+    dirs = np.empty(S.N_EVENTS, dtype=np.int64)
+    rates = np.empty(S.N_EVENTS, dtype=np.int64)
+    yd = np.zeros(S.N_DELAYED)
+    for j in range(Y.shape[0]):
+        S.events(0.0, Y[j], yd, S.MODE_FREE, p, ip, g, dirs, rates)
+        gap[j] = np.inf
+        rate[j] = np.nan
+        for k in range(S.N_EVENTS):
+            if dirs[k] == -1 and g[k] < gap[j]:
+                gap[j] = g[k]
+                rate[j] = g[rates[k]] if rates[k] >= 0 else np.nan
+
+
+def obstacle_gap(system: System, states: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Signed distance to the nearest rigid obstacle of ``system`` and its rate, for
+    each state row (free mode)."""
+    Y = np.ascontiguousarray(np.atleast_2d(states), dtype=float)
+    gap, rate = np.empty(Y.shape[0]), np.empty(Y.shape[0])
+    _gaps(Y, tuple(float(v) for v in system.p), tuple(int(v) for v in system.ip), gap, rate)
+    return gap, rate
+
+
+def free_overrides(system: System) -> list[str]:
+    """``--set`` overrides that take the obstacle away."""
+    if system.family == S.FAMILY_OSCILLATOR:
+        if system.units["oscillator"].params["stop"] not in ("rigid_one_sided", "rigid_two_sided"):
+            raise AnalysisError("oscillator.stop: grazing is studied on rigid stops")
+        return ['oscillator.stop="none"']
+    stator = system.units.get("stator")
+    if stator is None or stator.type != "rigid":
+        raise AnalysisError("units.stator: grazing is studied on a rigid stator")
+    return [f"stator.clearance={1e6 * stator.params['clearance']!r}"]
+
+
+@dataclass(frozen=True)
+class GapMinimum:
+    gap: float  # signed minimum gap along one period, m (or the model's length unit)
+    rate: float  # the gap's rate there (the normal velocity)
+    time: float  # when, from the period's start
+
+
+def min_gap(
+    obstacle: System, free: System, y: np.ndarray, rtol: float = FLOQUET_RTOL
+) -> GapMinimum:
+    """The smallest gap to ``obstacle``'s obstacle along one forcing period of the
+    ``free`` system's orbit from ``y`` (at phase 0)."""
+    T = free.forcing_period
+    t = np.linspace(0.0, T, SAMPLES_PER_PERIOD + 1)
+    sys0 = System(**{**free.__dict__, "y0": np.asarray(y, dtype=float)})
+    res = simulate(sys0, T, t_eval=t, engine="fast", rtol=rtol)
+    if not res.ok:
+        raise AnalysisError(f"the free orbit failed: {res.message}")
+    idx = [res.output_names.index(n) for n in free.state_names]
+    gap, rate = obstacle_gap(obstacle, res.outputs[:, idx])
+    i = int(np.clip(np.argmin(gap), 1, gap.size - 2))
+    g0, g1, g2 = gap[i - 1 : i + 2]
+    curv = g0 - 2.0 * g1 + g2
+    shift = 0.5 * (g0 - g2) / curv if curv > 0.0 else 0.0
+    shift = float(np.clip(shift, -1.0, 1.0))
+    refined = g1 - 0.25 * (g0 - g2) * shift
+    dt = t[1] - t[0]
+    return GapMinimum(
+        float(min(refined, g1)),
+        float(np.interp(t[i] + shift * dt, t, rate)),
+        float(t[i] + shift * dt),
+    )
+
+
+@dataclass
+class Grazing:
+    """A located grazing: parameter value, the free periodic orbit's stroboscopic point
+    there, the normal velocity at the touching point, and the square-root law fit."""
+
+    param: str
+    value: float
+    state: np.ndarray
+    normal_velocity: float  # relative to the system's velocity scale
+    depths: np.ndarray
+    deviations: np.ndarray
+    exponent: float
+
+    def as_dict(self) -> dict[str, Any]:
+        return {
+            "parameter": self.param,
+            "value": self.value,
+            "state": self.state.tolist(),
+            "normal_velocity_relative": self.normal_velocity,
+            "sqrt_law": {
+                "depths": self.depths.tolist(),
+                "deviations": self.deviations.tolist(),
+                "exponent": self.exponent,
+                "expected": 0.5,
+            },
+        }
+
+
+def _systems(path: str, overrides: list[str], param: str, value: float) -> tuple[System, System]:
+    sets = [*overrides, f"{param}={float(value)!r}"]
+    obstacle = load_scenario(path, sets).system
+    free = load_scenario(path, [*sets, *free_overrides(obstacle)]).system
+    return obstacle, free
+
+
+def _free_periodic_point(free: System, guess: np.ndarray | None) -> np.ndarray:
+    smap = StroboscopicMap(free, FLOQUET_RTOL)
+    if guess is None:
+        orbit = smap.orbit(skip=300, keep=1)
+        if not orbit.ok:
+            raise AnalysisError(f"the free system's orbit failed: {orbit.message}")
+        guess = orbit.final_state
+    return floquet(smap, guess, 1).state
+
+
+def locate(
+    path: str, overrides: list[str], param: str, lo: float, hi: float, xtol: float = 1e-10
+) -> tuple[float, np.ndarray, float]:
+    """The parameter in ``[lo, hi]`` where the free period-1 orbit's minimum gap is
+    zero, to ``xtol`` relative; returns ``(value, state, normal velocity)``."""
+    cache: dict[float, np.ndarray] = {}
+
+    def gap_at(mu: float) -> float:
+        obstacle, free = _systems(path, overrides, param, mu)
+        y = _free_periodic_point(free, next(iter(cache.values()), None))
+        cache[mu] = y
+        return min_gap(obstacle, free, y).gap / float(obstacle.state_scale[0])
+
+    g_lo, g_hi = gap_at(lo), gap_at(hi)
+    if g_lo * g_hi > 0.0:
+        raise AnalysisError(
+            f"{param}: the free orbit's minimum gap has one sign on [{lo:g}, {hi:g}] "
+            f"({g_lo:.3g}, {g_hi:.3g} length scales): no grazing there"
+        )
+    span = abs(hi - lo)
+    value = brentq(gap_at, lo, hi, xtol=xtol * max(span, abs(lo), abs(hi)), rtol=1e-15)
+    obstacle, free = _systems(path, overrides, param, value)
+    y = _free_periodic_point(free, cache.get(value))
+    m = min_gap(obstacle, free, y)
+    return float(value), y, m.rate / obstacle.velocity_scale
+
+
+def sqrt_law(
+    path: str, overrides: list[str], param: str, value: float, y_graze: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, float]:
+    """Deviation of the impacting map from the free map against penetration depth at the
+    grazing point, and the fitted exponent (expected 0.5)."""
+    obstacle, free = _systems(path, overrides, param, value)
+    imp_map = StroboscopicMap(obstacle, FLOQUET_RTOL)
+    free_map = StroboscopicMap(free, FLOQUET_RTOL)
+    scale = obstacle.state_scale
+    length = float(scale[0])
+    # the direction that pushes the free orbit into the obstacle: along the gradient of
+    # the minimum gap over the section (taken by differences)
+    grad = np.empty(y_graze.size)
+    h = 1e-6
+    base = min_gap(obstacle, free, y_graze).gap
+    for j in range(y_graze.size):
+        e = np.zeros_like(y_graze)
+        e[j] = h * scale[j]
+        grad[j] = (min_gap(obstacle, free, y_graze + e).gap - base) / h
+    direction = -grad / np.linalg.norm(grad)
+    depths, devs = [], []
+    for target in DEPTHS:
+        s = target * length / np.linalg.norm(grad)
+        y = y_graze + s * direction * scale
+        depth = -min_gap(obstacle, free, y).gap / length
+        if depth <= 0.0:
+            continue
+        a = imp_map.orbit(y, keep=1)
+        b = free_map.orbit(y, keep=1)
+        if not (a.ok and b.ok) or a.impacts[0] < 1:
+            continue
+        depths.append(depth)
+        devs.append(float(np.max(np.abs(a.final_state - b.final_state) / scale)))
+    if len(depths) < 4:
+        raise AnalysisError("too few impacting perturbations to fit the square-root law")
+    slope = float(np.polyfit(np.log(depths), np.log(devs), 1)[0])
+    return np.array(depths), np.array(devs), slope
+
+
+def brackets(values: np.ndarray, impacts: np.ndarray, status: np.ndarray) -> list[tuple]:
+    """Neighbouring sweep values between which the motion starts (or stops) impacting:
+    ``impacts`` is (values, periods)."""
+    hits = impacts.sum(axis=1) > 0
+    out = []
+    for i in range(values.size - 1):
+        if status[i] == 0 and status[i + 1] == 0 and hits[i] != hits[i + 1]:
+            out.append((float(values[i]), float(values[i + 1])))
+    return out
+
+
+def grazing(
+    path: str, overrides: list[str], param: str, lo: float, hi: float, xtol: float = 1e-10
+) -> Grazing:
+    """Locate the grazing between ``lo`` and ``hi`` and fit the square-root law there."""
+    value, y, vn = locate(path, overrides, param, lo, hi, xtol)
+    depths, devs, slope = sqrt_law(path, overrides, param, value, y)
+    if not math.isfinite(slope):
+        raise AnalysisError("the square-root law fit failed")
+    return Grazing(param, value, y, vn, depths, devs, slope)
