@@ -133,6 +133,12 @@ def _analysis_parsers(sub: Any) -> None:
         help="independent continuation chains per direction (parallel)",
     )
     sw.add_argument(
+        "--floquet",
+        action="store_true",
+        help="Floquet multipliers (stability, kind of bifurcation) of each periodic motion "
+        "of period <= 8",
+    )
+    sw.add_argument(
         "--grazing",
         action="store_true",
         help="locate each grazing between sweep values (impacts start or stop) and fit the "
@@ -211,6 +217,15 @@ def cmd_sweep(args: argparse.Namespace) -> int:
         chains=args.chains,
         progress=not args.no_progress,
     )
+    multipliers = {}
+    if args.floquet:
+        from .analysis.floquet import floquet_along
+        from .analysis.sweep import sweep_systems
+
+        systems = sweep_systems(scenario.source, args.set, param, result.values)
+        for d in result.points:
+            periods = [c.get("period", 0) for c in result.classify(d)]
+            multipliers[d] = floquet_along(systems, result.points[d], result.modes[d], periods)
     grazings = []
     if args.grazing:
         from .analysis.grazing import brackets, grazing
@@ -219,7 +234,9 @@ def cmd_sweep(args: argparse.Namespace) -> int:
         for lo, hi in brackets(result.values, result.impacts[first], result.status[first])[:5]:
             lo, hi = min(lo, hi), max(lo, hi)
             grazings.append(grazing(scenario.source, args.set, param.name, lo, hi).as_dict())
-    write_directory(out, lambda tmp: write_sweep(result, tmp, scenario.name, plot_state, grazings))
+    write_directory(
+        out, lambda tmp: write_sweep(result, tmp, scenario.name, plot_state, grazings, multipliers)
+    )
     shutil.rmtree(ckpt, ignore_errors=True)
     failed = {d: int((s != 0).sum()) for d, s in result.status.items()}
     for g in grazings:

@@ -288,11 +288,16 @@ def test_cli_sweep_writes_data_plot_and_report(tmp_path, capsys):
         "1",
         "--plot-state",
         "oscillator.v",
+        "--floquet",
     ]
     assert main(args) == 0
     report = json.loads((out / "report.json").read_text())
     assert report["parameter"] == "oscillator.forcing_amplitude" and len(report["values"]) == 4
     assert [c["label"] for c in report["directions"]["up"]] == ["1-1"] * 4
+    for entry in report["directions"]["up"]:  # 1-1 orbits: r^2 exp(-b T) = 0.4675
+        re, im = np.array(entry["floquet"]["multipliers"]).T
+        assert entry["floquet"]["stable"]
+        assert np.prod(re + 1j * im).real == pytest.approx(0.64 * math.exp(-0.1 * math.pi), 1e-6)
     data = np.load(out / "sweep.npz")
     assert data["points_up"].shape == (4, 6, 2) and (out / "bifurcation.png").stat().st_size
     csv = np.loadtxt(out / "sweep.csv", delimiter=",", skiprows=1)

@@ -118,3 +118,33 @@ def floquet(
     mult = np.linalg.eigvals(J)
     mult = mult[np.argsort(-np.abs(mult))]
     return Floquet(mult, J, y, period, m, residual)
+
+
+def floquet_report(f: Floquet) -> dict:
+    """JSON-able summary: multipliers as [re, im] pairs, largest first."""
+    return {
+        "multipliers": [[float(z.real), float(z.imag)] for z in f.multipliers],
+        "spectral_radius": f.spectral_radius,
+        "stable": bool(f.stable),
+        "kind": f.kind,
+        "residual": f.residual,
+    }
+
+
+def floquet_along(
+    systems: list, points: np.ndarray, modes: np.ndarray, periods: list[int], max_period: int = 8
+) -> list[dict | None]:
+    """Multipliers of each periodic motion of a sweep (``periods[i]`` its period, 0 when
+    not periodic), from its last stroboscopic point; ``None`` where not periodic or
+    longer than ``max_period``, ``{"error": ...}`` where not feasible (grazing)."""
+    out: list[dict | None] = []
+    for system, pts, md, n in zip(systems, points, modes, periods, strict=True):
+        if not n or n > max_period or not np.all(np.isfinite(pts[-1])):
+            out.append(None)
+            continue
+        try:
+            f = floquet(StroboscopicMap(system, FLOQUET_RTOL), pts[-1], n, int(md[-1]))
+            out.append(floquet_report(f))
+        except (MapError, np.linalg.LinAlgError) as exc:
+            out.append({"error": str(exc)})
+    return out

@@ -29,10 +29,12 @@ def write_sweep(
     scenario_name: str,
     plot_state: int = 0,
     grazings: list[dict[str, Any]] | None = None,
+    multipliers: dict[str, list[dict[str, Any] | None]] | None = None,
 ) -> None:
     """``sweep.npz``, ``sweep.csv`` (one row per stroboscopic point), ``report.json``
-    (per value: n-m, distinct points; located grazings) and ``bifurcation.png``
-    (and ``grazing.png``, the square-root law, when grazings were located)."""
+    (per value: n-m, distinct points, Floquet multipliers if asked; located grazings)
+    and ``bifurcation.png`` (and ``grazing.png``, the square-root law, when grazings
+    were located)."""
     dirs = list(result.points)
     np.savez_compressed(
         tmp / "sweep.npz",
@@ -68,6 +70,9 @@ def write_sweep(
         fmt="%.12g",
     )
     per_dir = {d: result.classify(d) for d in dirs}
+    for d, rows in (multipliers or {}).items():
+        for entry, f in zip(per_dir[d], rows, strict=True):
+            entry["floquet"] = f
     _json(
         tmp / "report.json",
         {
