@@ -6,7 +6,7 @@ STAMP := $(VENV)/.installed-stamp
 FLAGSHIP ?= scenarios/jeffcott_rigid_stator.toml
 OUT ?= results/jeffcott_rigid_stator
 
-.PHONY: setup run test lint format bench clean
+.PHONY: setup run test lint format bench bench-analysis gallery clean
 
 setup: $(STAMP)
 
@@ -33,6 +33,12 @@ test: lint
 
 bench: $(STAMP)
 	$(PY) benchmarks/bench_engines.py --periods 200
+
+bench-analysis: $(STAMP)
+	$(PY) benchmarks/bench_analysis.py --repeats 3
+
+gallery: $(STAMP)
+	sh docs/make_gallery.sh
 
 clean:
 	rm -rf $(VENV) build results .pytest_cache

@@ -435,3 +435,49 @@ def test_cli_sweep_locates_grazing(tmp_path, capsys):
     assert g["value"] == pytest.approx(math.sqrt(9.04), rel=1e-8)
     assert (out / "grazing.png").stat().st_size > 0
     assert "square-root law exponent 0.5" in capsys.readouterr().out
+
+
+def test_every_gallery_command_names_a_scenario_and_parses():
+    import shlex
+
+    from rubcosim.cli import _parser
+
+    script = (SCENARIOS.parent / "docs" / "make_gallery.sh").read_text()
+    commands = script.replace("\\\n", " ").splitlines()
+    runs = [shlex.split(c.split("||")[0])[1:] for c in commands if c.startswith("$R ")]
+    assert len(runs) == 9
+    for argv in runs:
+        argv = [a.replace('"$OUT', "results/gallery").rstrip('"') for a in argv if a != "$Q"]
+        args = _parser().parse_args(argv)
+        assert (SCENARIOS.parent / args.scenario).is_file(), args.scenario
+        if args.command == "sweep":
+            parse_param(args.param)
+
+
+def test_delayed_feedback_turns_the_chaotic_rotor_periodic_and_its_force_dies_away():
+    from rubcosim.reference.simulate import simulate
+
+    path = SCENARIOS / "jeffcott_chaos_control.toml"
+    sc = load_scenario(path, ["sim.rtol=1e-9"])
+    T, t_on = sc.system.forcing_period, sc.units["controller"]["t_on"]
+    k = np.arange(1, 301)
+    res = simulate(sc.system, 300 * T, t_eval=k * T, rtol=1e-9, engine="fast")
+    assert res.ok, res.message
+    pts = np.column_stack([res.output("rotor.x"), res.output("rotor.y")])
+    scale = sc.system.state_scale[:2]
+    before = k * T < t_on - 1e-9
+    chaos = classify(pts[before][50:], np.zeros(int(before.sum()) - 50), scale)
+    assert chaos.label == NOT_PERIODIC and chaos.distinct > 40
+    after = classify(pts[-100:], np.zeros(100), scale)
+    assert after.period == 1
+    # the control force, sampled 40 times a period, dies away on the stabilised orbit
+    fine = np.arange(t_on, 300 * T, T / 40)
+    u = simulate(sc.system, 300 * T, t_eval=fine, rtol=1e-9, engine="fast")
+    force = np.hypot(u.output("controller.ux"), u.output("controller.uy"))
+    assert np.max(force[: 20 * 40]) > 10.0
+    assert np.max(force[-20 * 40 :]) < 1e-3 * np.max(force[: 20 * 40])
+    # without the controller the same rotor stays chaotic
+    off = load_scenario(path, ["controller.gain=0.0", "sim.rtol=1e-9"])
+    free = simulate(off.system, 300 * T, t_eval=k * T, rtol=1e-9, engine="fast")
+    tail = np.column_stack([free.output("rotor.x"), free.output("rotor.y")])[-100:]
+    assert classify(tail, np.zeros(100), scale).distinct > 40

@@ -30,6 +30,7 @@ CASES = {
     "jeffcott_elastic_casing": (0.03, 1e-6, True),
     "two_mass_oilfilm_rub": (0.05, 1e-6, True),
     "jeffcott_delayed_feedback": (0.2, 1e-6, True),
+    "jeffcott_chaos_control": (0.1, 1e-6, True),
     "impact_duffing": (7.0, 1e-6, True),
     "impact_oscillator_linear": (8.0, 1e-6, True),
     "impact_oscillator_symmetric": (9.0, 1e-6, True),
