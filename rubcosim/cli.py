@@ -133,6 +133,13 @@ def _analysis_parsers(sub: Any) -> None:
         help="independent continuation chains per direction (parallel)",
     )
     sw.add_argument(
+        "--section",
+        choices=("strobe", "impact"),
+        default="strobe",
+        help="what bifurcation.png draws: the stroboscopic section (default) or the impact "
+        "section (forcing phase of every impact)",
+    )
+    sw.add_argument(
         "--floquet",
         action="store_true",
         help="Floquet multipliers (stability, kind of bifurcation) of each periodic motion "
@@ -234,8 +241,9 @@ def cmd_sweep(args: argparse.Namespace) -> int:
         for lo, hi in brackets(result.values, result.impacts[first], result.status[first])[:5]:
             lo, hi = min(lo, hi), max(lo, hi)
             grazings.append(grazing(scenario.source, args.set, param.name, lo, hi).as_dict())
+    drawn = "impact" if args.section == "impact" else plot_state
     write_directory(
-        out, lambda tmp: write_sweep(result, tmp, scenario.name, plot_state, grazings, multipliers)
+        out, lambda tmp: write_sweep(result, tmp, scenario.name, drawn, grazings, multipliers)
     )
     shutil.rmtree(ckpt, ignore_errors=True)
     failed = {d: int((s != 0).sum()) for d, s in result.status.items()}

@@ -61,6 +61,24 @@ def test_duffing_orbits_reach_the_two_attractors_the_scenario_documents():
     assert np.array_equal(modes, [0, 0]) and np.array_equal(big.modes, np.zeros(10))
 
 
+def test_impact_section_of_the_duffing_1_1_orbit():
+    # the impacting orbit hits the barrier x = 1 once a period, always at one phase,
+    # leaving it with a negative speed (the same as a plain run of the engine logs)
+    from rubcosim.reference.simulate import simulate
+
+    smap = duffing_map(rtol=1e-11)
+    orbit = smap.orbit(skip=100, keep=6)
+    phases, after = orbit.impact_phases, orbit.impact_states
+    assert phases.size == 6 and np.ptp(phases) < 1e-8 and 0.0 <= phases[0] < 2 * math.pi
+    assert np.allclose(after[:, 0], 1.0, atol=1e-12) and np.all(after[:, 1] < 0.0)
+    sc = load_scenario(DUFFING)
+    t_hit = 100 * smap.period + phases[0] / (2 * math.pi) * smap.period
+    before = simulate(sc.system, t_hit, t_start=0.0, rtol=1e-11, t_eval=np.array([t_hit]))
+    logged = before.events.state[before.events.of_kind("impact")[-1]]  # a separate run
+    assert logged[1] == pytest.approx(after[0, 1], rel=1e-6)
+    assert smap.orbit(skip=100, keep=6, max_section=2).impact_phases.size == 2
+
+
 def test_map_refuses_what_it_cannot_take():
     with pytest.raises(MapError, match="units.controller"):
         StroboscopicMap(load_scenario(SCENARIOS / "jeffcott_delayed_feedback.toml").system)
@@ -289,6 +307,8 @@ def test_cli_sweep_writes_data_plot_and_report(tmp_path, capsys):
         "--plot-state",
         "oscillator.v",
         "--floquet",
+        "--section",
+        "impact",
     ]
     assert main(args) == 0
     report = json.loads((out / "report.json").read_text())
@@ -300,6 +320,9 @@ def test_cli_sweep_writes_data_plot_and_report(tmp_path, capsys):
         assert np.prod(re + 1j * im).real == pytest.approx(0.64 * math.exp(-0.1 * math.pi), 1e-6)
     data = np.load(out / "sweep.npz")
     assert data["points_up"].shape == (4, 6, 2) and (out / "bifurcation.png").stat().st_size
+    phases = data["impact_phase_up"]  # one impact a period, at one phase per value
+    assert phases.shape == (4, 24) and np.all(np.isfinite(phases[:, :6]))
+    assert np.all(np.isnan(phases[:, 6:])) and np.all(np.ptp(phases[:, :6], axis=1) < 1e-6)
     csv = np.loadtxt(out / "sweep.csv", delimiter=",", skiprows=1)
     assert csv.shape == (2 * 4 * 6, 6)
     assert not (tmp_path / ".sweep.checkpoint").exists()

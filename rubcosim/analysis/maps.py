@@ -14,7 +14,7 @@ and stators (``KIND_IMPACT`` and ``KIND_CONTACT_ON`` events): the ``m`` of an
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numba as nb
 import numpy as np
@@ -39,6 +39,20 @@ def _period_events(evlog, n_events):
         if kinds[i] == S.KIND_IMPACT or kinds[i] == S.KIND_CONTACT_ON:
             m += 1
     return m
+
+
+@nb.njit(cache=True)
+def _log_impacts(evlog, n_events, imp_t, imp_y, imp_count):
+    """Append the logged impacts and contact onsets to the impact-section buffers."""
+    times, kinds, states = evlog[0], evlog[1], evlog[4]
+    for i in range(min(n_events, kinds.shape[0])):
+        if kinds[i] == S.KIND_IMPACT or kinds[i] == S.KIND_CONTACT_ON:
+            c = imp_count[0]
+            if c < imp_t.shape[0]:
+                imp_t[c] = times[i]
+                for j in range(imp_y.shape[1]):
+                    imp_y[c, j] = states[i, j]
+            imp_count[0] = c + 1
 
 
 @nb.njit(cache=True)
@@ -69,12 +83,17 @@ def strobe_run(
     points,
     impacts,
     modes,
+    imp_t,
+    imp_y,
+    imp_count,
 ):
     """Integrate ``n_skip + n_keep`` periods from ``(t0, y0, mode0)``.
 
     Writes the state at the end of each of the last ``n_keep`` periods to
     ``points[k]``, that period's impacts to ``impacts[k]`` and the discrete
-    mode there to ``modes[k]``.  Returns
+    mode there to ``modes[k]``.  The impacts of the kept periods (the impact
+    section) go to ``imp_t`` (time) and ``imp_y`` (state just after), as many
+    as fit; ``imp_count[0]`` counts them.  Returns
     ``(status, periods_done, mode)``; the state after the last period done is
     ``points[periods_done - n_skip - 1]`` when ``periods_done > n_skip``.
     """
@@ -121,6 +140,7 @@ def strobe_run(
                 points[k - n_skip, i] = y[i]
             impacts[k - n_skip] = _period_events(evlog, cnt[C_EVENTS])
             modes[k - n_skip] = mode
+            _log_impacts(evlog, cnt[C_EVENTS], imp_t, imp_y, imp_count)
     return STATUS_OK, n_skip + n_keep, mode
 
 
@@ -151,6 +171,9 @@ def map_many(
     pts = np.empty((1, n))
     imp = np.zeros(1, dtype=np.int64)
     md = np.zeros(1, dtype=np.int64)
+    no_t = np.empty(0)
+    no_y = np.empty((0, n))
+    no_c = np.zeros(1, dtype=np.int64)
     for j in range(Y0.shape[0]):
         total = 0
         y = Y0[j].copy()
@@ -173,6 +196,9 @@ def map_many(
                 pts,
                 imp,
                 md,
+                no_t,
+                no_y,
+                no_c,
             )
             if st != STATUS_OK:
                 break
@@ -227,10 +253,21 @@ class Orbit:
     status: int
     message: str
     period: float
+    impact_times: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    impact_states: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
+    t0: float = 0.0
 
     @property
     def ok(self) -> bool:
         return self.status == STATUS_OK
+
+    @property
+    def impact_phases(self) -> np.ndarray:
+        """The impact section (the book's Poincaré section II, the impact surface): the
+        forcing phase of each impact of the kept periods, rad in [0, 2 pi); the state
+        just after each impact is ``impact_states``."""
+        frac = np.mod((self.impact_times - self.t0) / self.period, 1.0)
+        return 2.0 * math.pi * frac
 
     @property
     def final_state(self) -> np.ndarray:
@@ -284,9 +321,11 @@ class StroboscopicMap:
         keep: int = 1,
         mode: int | None = None,
         t0: float = 0.0,
+        max_section: int | None = None,
     ) -> Orbit:
         """Iterate the map ``skip + keep`` times from ``y0`` (default: the system's initial
-        state at ``t0``) and keep the last ``keep`` points."""
+        state at ``t0``) and keep the last ``keep`` points, and the impact section of the
+        kept periods (at most ``max_section`` impacts, default 16 per period)."""
         if not (isinstance(skip, int) and skip >= 0):
             raise MapError(f"skip = {skip!r} must be an integer >= 0")
         if not (isinstance(keep, int) and keep >= 1):
@@ -296,6 +335,10 @@ class StroboscopicMap:
         points = np.full((keep, self.n_state), np.nan)
         impacts = np.zeros(keep, dtype=np.int64)
         modes = np.zeros(keep, dtype=np.int64)
+        cap = 16 * keep if max_section is None else int(max_section)
+        imp_t = np.full(cap, np.nan)
+        imp_y = np.full((cap, self.n_state), np.nan)
+        imp_n = np.zeros(1, dtype=np.int64)
         status, done, m_end = strobe_run(
             y,
             m,
@@ -312,8 +355,12 @@ class StroboscopicMap:
             points,
             impacts,
             modes,
+            imp_t,
+            imp_y,
+            imp_n,
         )
         kept = max(0, done - skip)
+        n_sec = min(int(imp_n[0]), cap)
         message = STATUS_MESSAGES[status]
         if status != STATUS_OK:
             message = f"{message} (in forcing period {done + 1})"
@@ -325,6 +372,9 @@ class StroboscopicMap:
             int(status),
             message,
             self.period,
+            imp_t[:n_sec],
+            imp_y[:n_sec],
+            float(t0),
         )
 
     def map(

@@ -27,7 +27,7 @@ def write_sweep(
     result: SweepResult,
     tmp: Path,
     scenario_name: str,
-    plot_state: int = 0,
+    plot_state: int | str = 0,
     grazings: list[dict[str, Any]] | None = None,
     multipliers: dict[str, list[dict[str, Any] | None]] | None = None,
 ) -> None:
@@ -44,6 +44,7 @@ def write_sweep(
         **{f"impacts_{d}": result.impacts[d] for d in dirs},
         **{f"modes_{d}": result.modes[d] for d in dirs},
         **{f"status_{d}": result.status[d] for d in dirs},
+        **{f"impact_phase_{d}": result.impact_phase[d] for d in dirs},
     )
     rows = []
     for d_i, d in enumerate(dirs):
@@ -116,7 +117,9 @@ def _plot_grazing(grazings: list[dict[str, Any]], path: Path) -> None:
     plt.close(fig)
 
 
-def _plot_sweep(result: SweepResult, path: Path, state: int) -> None:
+def _plot_sweep(result: SweepResult, path: Path, state: int | str) -> None:
+    """Stroboscopic coordinate ``state`` (an index) against the parameter, or with
+    ``state = "impact"`` the impact section: the forcing phase of every impact."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -126,19 +129,27 @@ def _plot_sweep(result: SweepResult, path: Path, state: int) -> None:
     fig, axes = plt.subplots(len(dirs), 1, figsize=(8, 3.6 * len(dirs)), squeeze=False)
     vmax = max(1, max(int(result.impacts[d].max()) for d in dirs))
     for ax, d in zip(axes[:, 0], dirs, strict=True):
-        pts = result.points[d][:, :, state]
+        if state == "impact":
+            pts = result.impact_phase[d]
+            # coloured by the value's mean impacts per period
+            colour = np.repeat(result.impacts[d].mean(axis=1), pts.shape[1])
+            ylabel = "forcing phase of impacts (rad)"
+        else:
+            pts = result.points[d][:, :, state]
+            colour = result.impacts[d].ravel()
+            ylabel = f"{result.state_names[state]} at t = kT"
         x = np.repeat(result.values, pts.shape[1])
         sc = ax.scatter(
             x,
             pts.ravel(),
-            c=result.impacts[d].ravel(),
+            c=colour,
             s=0.6,
             cmap="viridis",
             vmin=0,
             vmax=vmax,
             rasterized=True,
         )
-        ax.set_ylabel(f"{result.state_names[state]} at t = kT")
+        ax.set_ylabel(ylabel)
         ax.set_title(f"sweep {d}")
         fig.colorbar(sc, ax=ax, label="impacts per period")
     axes[-1, 0].set_xlabel(result.param.name)

@@ -27,6 +27,7 @@ from .parallel import Checkpoint, executor, run_tasks
 
 DIRECTIONS = ("up", "down", "both")
 DEFAULT_BLOCK = 20  # parameter values per task
+SECTION_PER_PERIOD = 4  # impact-section phases kept per kept period (NaN-padded)
 _RANGE = re.compile(r"^\s*([^=\s]+)\s*=\s*([^:]+):([^:]+):([^:]+)\s*$")
 
 
@@ -93,21 +94,24 @@ def run_block(
     pts = np.full((len(systems), periods, n), np.nan)
     imp = np.zeros((len(systems), periods), dtype=np.int64)
     modes = np.zeros((len(systems), periods), dtype=np.int64)
+    phases = np.full((len(systems), SECTION_PER_PERIOD * periods), np.nan)
     status = np.zeros(len(systems), dtype=np.int64)
     y, mode = y0.copy(), int(mode0)
     for i, system in enumerate(systems):
         orbit = StroboscopicMap(system, rtol, max_events).orbit(
-            y, skip=discard, keep=periods, mode=mode
+            y, skip=discard, keep=periods, mode=mode, max_section=phases.shape[1]
         )
         status[i] = orbit.status
         if orbit.ok:
             pts[i], imp[i], modes[i] = orbit.points, orbit.impacts, orbit.modes
+            phases[i, : orbit.impact_phases.size] = orbit.impact_phases
             y, mode = orbit.final_state.copy(), orbit.mode
         # a failed value leaves the continuation at the last good state
     return {
         "points": pts,
         "impacts": imp,
         "modes": modes,
+        "phases": phases,
         "status": status,
         "y": y,
         "mode": np.array(mode),
@@ -128,6 +132,8 @@ class SweepResult:
     impacts: dict[str, np.ndarray]
     modes: dict[str, np.ndarray]
     status: dict[str, np.ndarray]
+    # impact section: forcing phase (rad) of each impact in the kept periods, NaN-padded
+    impact_phase: dict[str, np.ndarray]
 
     def classify(self, direction: str, tol: float = DEFAULT_TOL) -> list[dict[str, Any]]:
         """Per value: the n-m label and the number of distinct stroboscopic points."""
@@ -252,19 +258,20 @@ def sweep(
                 )
             )
     n = scenario.system.n_state
-    points, impacts, modes, status = {}, {}, {}, {}
+    points, impacts, modes, status, phase = {}, {}, {}, {}, {}
     for d in dirs:
         pts = np.full((values.size, periods, n), np.nan)
         imp = np.zeros((values.size, periods), dtype=np.int64)
         md = np.zeros((values.size, periods), dtype=np.int64)
+        ph = np.full((values.size, SECTION_PER_PERIOD * periods), np.nan)
         st = np.zeros(values.size, dtype=np.int64)
         for chain, chunks in chain_blocks.items():
             if chain.startswith(d):
                 for b, idx in enumerate(chunks):
                     r = results[key(chain, b)]
                     pts[idx], imp[idx], st[idx] = r["points"], r["impacts"], r["status"]
-                    md[idx] = r["modes"]
-        points[d], impacts[d], modes[d], status[d] = pts, imp, md, st
+                    md[idx], ph[idx] = r["modes"], r["phases"]
+        points[d], impacts[d], modes[d], status[d], phase[d] = pts, imp, md, st, ph
     return SweepResult(
         param,
         values,
@@ -276,4 +283,5 @@ def sweep(
         impacts,
         modes,
         status,
+        phase,
     )
