@@ -24,7 +24,6 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
-import numba as nb
 import numpy as np
 from scipy.optimize import brentq
 
@@ -35,26 +34,10 @@ from rubcosim.scenario import load_scenario
 
 from .errors import AnalysisError
 from .floquet import FLOQUET_RTOL, floquet
-from .maps import StroboscopicMap
+from .maps import StroboscopicMap, obstacle_gaps
 
 SAMPLES_PER_PERIOD = 4000
 DEPTHS = np.logspace(-7, -3, 9)  # penetration depths for the fit, in length scales
-
-
-@nb.njit(cache=True)
-def _gaps(Y, p, ip, gap, rate):
-    g = np.empty(S.N_EVENTS)
-    dirs = np.empty(S.N_EVENTS, dtype=np.int64)
-    rates = np.empty(S.N_EVENTS, dtype=np.int64)
-    yd = np.zeros(S.N_DELAYED)
-    for j in range(Y.shape[0]):
-        S.events(0.0, Y[j], yd, S.MODE_FREE, p, ip, g, dirs, rates)
-        gap[j] = np.inf
-        rate[j] = np.nan
-        for k in range(S.N_EVENTS):
-            if dirs[k] == -1 and g[k] < gap[j]:
-                gap[j] = g[k]
-                rate[j] = g[rates[k]] if rates[k] >= 0 else np.nan
 
 
 def obstacle_gap(system: System, states: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -62,7 +45,8 @@ def obstacle_gap(system: System, states: np.ndarray) -> tuple[np.ndarray, np.nda
     each state row (free mode)."""
     Y = np.ascontiguousarray(np.atleast_2d(states), dtype=float)
     gap, rate = np.empty(Y.shape[0]), np.empty(Y.shape[0])
-    _gaps(Y, tuple(float(v) for v in system.p), tuple(int(v) for v in system.ip), gap, rate)
+    p, ip = tuple(float(v) for v in system.p), tuple(int(v) for v in system.ip)
+    obstacle_gaps(Y, S.MODE_FREE, p, ip, gap, rate)
     return gap, rate
 
 

@@ -213,27 +213,31 @@ def map_many(
 
 
 @nb.njit(cache=True)
-def _admissible(Y, modes, p, ip, out):
+def obstacle_gaps(Y, mode, p, ip, gap, rate):
+    """For each state row: the smallest event function among the rigid-obstacle slots
+    (those that fire on a decrease through zero: the gaps) in ``mode``, and its rate
+    (``NaN`` without a rate slot); ``inf`` when there is no obstacle."""
     g = np.empty(S.N_EVENTS)
     dirs = np.empty(S.N_EVENTS, dtype=np.int64)
     rates = np.empty(S.N_EVENTS, dtype=np.int64)
     yd = np.zeros(S.N_DELAYED)
     for j in range(Y.shape[0]):
-        S.events(0.0, Y[j], yd, modes[j], p, ip, g, dirs, rates)
-        out[j] = True
+        S.events(0.0, Y[j], yd, mode, p, ip, g, dirs, rates)
+        gap[j] = np.inf
+        rate[j] = np.nan
         for k in range(S.N_EVENTS):
-            if dirs[k] == -1 and g[k] < 0.0:
-                out[j] = False
+            if dirs[k] == -1 and g[k] < gap[j]:
+                gap[j] = g[k]
+                rate[j] = g[rates[k]] if rates[k] >= 0 else np.nan
 
 
 def admissible(smap: StroboscopicMap, states: np.ndarray) -> np.ndarray:
     """Whether each state (row, in the system's initial mode) is outside every rigid
     obstacle: a state beyond a rigid stop or stator is not a state of the system."""
     Y = np.ascontiguousarray(np.atleast_2d(np.asarray(states, dtype=float)))
-    modes = np.full(Y.shape[0], smap.system.mode0, dtype=np.int64)
-    out = np.empty(Y.shape[0], dtype=np.bool_)
-    _admissible(Y, modes, smap._p, smap._ip, out)
-    return out
+    gap, rate = np.empty(Y.shape[0]), np.empty(Y.shape[0])
+    obstacle_gaps(Y, smap.system.mode0, smap._p, smap._ip, gap, rate)
+    return gap >= 0.0
 
 
 @dataclass(frozen=True)
