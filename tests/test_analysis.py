@@ -381,6 +381,9 @@ def test_cli_basins_writes_data_plot_and_report(tmp_path, capsys):
         (["--grid", "16by16"], "--grid"),
         (["--region", "0:1"], "--region"),
         (["--grid", "0x4"], "--grid"),
+        (["--samples", "0"], "--samples"),
+        (["--workers", "0"], "--workers"),
+        (["--seed", "-1"], "--seed"),
     ]:
         assert main([*args, *bad]) == 2, bad
         assert msg in capsys.readouterr().err

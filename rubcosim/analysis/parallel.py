@@ -18,7 +18,6 @@ import hashlib
 import json
 import multiprocessing
 import os
-import shutil
 from collections.abc import Callable, Iterator, Mapping
 from pathlib import Path
 from typing import Any
@@ -68,9 +67,6 @@ class Checkpoint:
         tmp = self.directory / f".{key}.tmp.npz"
         np.savez(tmp, **result)
         os.replace(tmp, self._path(key))
-
-    def remove(self) -> None:
-        shutil.rmtree(self.directory, ignore_errors=True)
 
 
 class InlineExecutor(cf.Executor):
