@@ -40,15 +40,12 @@ class Motion:
 def distinct_count(points: np.ndarray, scale: np.ndarray, tol: float = DEFAULT_TOL) -> int:
     """How many points differ from every earlier kept point by more than ``tol`` scales
     in some component (greedy clustering, in order)."""
-    z = np.asarray(points, dtype=float) / np.asarray(scale, dtype=float)
-    kept: list[np.ndarray] = []
-    reps = np.empty((0, z.shape[1])) if z.ndim == 2 else np.empty((0, 1))
+    z = np.atleast_2d(np.asarray(points, dtype=float) / np.asarray(scale, dtype=float))
+    reps = np.empty((0, z.shape[1]))
     for row in z:
-        if reps.shape[0] and np.any(np.all(np.abs(reps - row) <= tol, axis=1)):
-            continue
-        kept.append(row)
-        reps = np.vstack((reps, row))
-    return len(kept)
+        if not np.any(np.all(np.abs(reps - row) <= tol, axis=1)):
+            reps = np.vstack((reps, row))
+    return reps.shape[0]
 
 
 def classify(

@@ -9,6 +9,7 @@ from typing import Any
 import numpy as np
 
 from .cellmap import LABEL_BOUNDARY, LABEL_ESCAPE, Basins
+from .motion import DEFAULT_TOL
 from .sweep import SweepResult
 
 
@@ -82,7 +83,7 @@ def write_sweep(
             "values": result.values.tolist(),
             "periods": result.periods,
             "discard": result.discard,
-            "classification_tolerance_in_state_scales": 1e-6,
+            "classification_tolerance_in_state_scales": DEFAULT_TOL,
             "directions": per_dir,
             "failed_values": {d: int(np.sum(result.status[d] != 0)) for d in dirs},
             "csv_direction_codes": {str(i): d for i, d in enumerate(dirs)},
