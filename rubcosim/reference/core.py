@@ -289,6 +289,55 @@ def pre_side(direction, side):
     return float(side)
 
 
+RETURN_LEVELS = 60  # first_return samples down to 2**-60 of the step: below round-off of t
+
+
+@nb.njit(cache=True)
+def first_return(k, j, sgn, t_a, t_b, rate_a, fb, seg, ctx, hist, scratch):
+    """Bracket ``(left, right)`` of the first return of ``sgn * g_k`` through zero in a
+    step that starts on the surface moving away (``rate_a = sgn * g_j(t_a) > 0``)
+    and ends with the rate on the same side (``fb = sgn * g_k(t_b)``); ``(-1, -1)``
+    if it does not come back.
+
+    g rose, and turned an even number of times, if at all: it may have come back
+    through zero (and even left again) inside the step, which neither end shows.
+    A rebound much shorter than the step (chattering) is the usual case, so the
+    rate is sampled at ``t_a + h / 2**i``, i = RETURN_LEVELS..0; its first turn
+    (the top) starts the bracket, which ends at the first sample on the crossed
+    side, or at the bottom of the return if g turns up again there.
+    """
+    h = t_b - t_a
+    tp, rp = t_a, rate_a
+    top = -1.0
+    last = t_a  # latest point with sgn * g > 0 and no zero of it found before
+    for i in range(RETURN_LEVELS, -1, -1):
+        tm = t_b if i == 0 else t_a + math.ldexp(h, -i)
+        if tm <= tp:
+            continue
+        rm = sgn * event_value(j, tm, seg, ctx, hist, scratch)
+        if top < 0.0:
+            if rm > 0.0:
+                tp, rp = tm, rm
+                continue
+            top = locate(j, sgn, tp, rp, tm, rm, seg, ctx, hist, scratch)
+            last = top
+        if sgn * event_value(k, tm, seg, ctx, hist, scratch) <= 0.0:
+            return last, tm
+        if rm > 0.0:
+            # turned up again before reaching zero? the bottom of the return decides
+            fa = -rp if rp < 0.0 else 1e-300
+            bottom = locate(j, -sgn, tp, fa, tm, -rm, seg, ctx, hist, scratch)
+            if sgn * event_value(k, bottom, seg, ctx, hist, scratch) <= 0.0:
+                return last, bottom
+            last = bottom
+            break
+        last = tm
+        tp, rp = tm, rm
+    if fb <= 0.0:
+        return last, t_b
+    return -1.0, -1.0
+
+
 @nb.njit(cache=True)
 def find_event(t_a, t_b, seg, ctx, hist, scratch, g_a, side_a, dirs_a, rates_a, g_b):
     """Earliest event in (t_a, t_b] of the step's dense output, or (-1, t_b).
@@ -309,11 +358,22 @@ def find_event(t_a, t_b, seg, ctx, hist, scratch, g_a, side_a, dirs_a, rates_a, 
         left = t_a
         right = -1.0
         j = rates_a[k]
-        if sgn * g_b[k] <= 0.0:
+        # Starting on the surface (just after an event) and moving away?
+        leaving = j >= 0 and sgn * g_a[k] <= 0.0 and sgn * g_a[j] > 0.0
+        if leaving and sgn * g_b[j] >= 0.0:
+            # The rate has not turned between the ends: a return through zero, if
+            # any, lies between turns inside the step.  A bracket from t_a would let
+            # the locator settle on the zero at t_a itself (the same event then
+            # fires again at one instant), and g_b alone misses a return that has
+            # left again by t_b.
+            left, right = first_return(
+                k, j, sgn, t_a, t_b, sgn * g_a[j], sgn * g_b[k], seg, ctx, hist, scratch
+            )
+        elif sgn * g_b[k] <= 0.0:
             right = t_b
-            if j >= 0 and sgn * g_a[k] <= 0.0 and sgn * g_a[j] > 0.0 and sgn * g_b[j] < 0.0:
-                # Starting on the surface (just after an event), moving away, then
-                # back through zero: bracket from the extremum, not from the start.
+            if leaving:
+                # moving away, then back through zero: bracket from the extremum,
+                # not from the start
                 left = locate(j, sgn, t_a, sgn * g_a[j], t_b, sgn * g_b[j], seg, ctx, hist, scratch)
         elif j >= 0 and sgn * g_a[j] < 0.0 and sgn * g_b[j] > 0.0:
             # Approaching, then receding within the step: does it touch at the extremum?
@@ -351,6 +411,9 @@ def event_candidate(g_a, side_a, dirs_a, rates_a, g_b):
         j = rates_a[k]
         if j >= 0 and sgn * g_a[j] < 0.0 and sgn * g_b[j] > 0.0:
             return True
+        if j >= 0 and sgn * g_a[k] <= 0.0 and sgn * g_a[j] > 0.0 and sgn * g_b[j] >= 0.0:
+            # left the surface at the start: it may have come back inside the step
+            return True
     return False
 
 
@@ -370,6 +433,9 @@ def start_sides(t, y, mode, p, ip, hist, g, dirs, rates, side, yd, forced_slot, 
         side[k] = 1 if g[k] > 0.0 else (-1 if g[k] < 0.0 else 0)
     if forced_slot >= 0:
         side[forced_slot] = forced_side
+        # The step starts at this slot's event: its function is zero there (the
+        # event map's projection onto the surface may leave a round-off residue).
+        g[forced_slot] = 0.0
 
 
 @nb.njit(cache=True)
