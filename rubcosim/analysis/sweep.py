@@ -18,6 +18,7 @@ from typing import Any
 
 import numpy as np
 
+from rubcosim.reference.assemble import System
 from rubcosim.scenario import Scenario, ScenarioError, load_scenario
 
 from .errors import AnalysisError
@@ -67,7 +68,7 @@ def parse_param(text: str) -> ParamRange:
 
 def sweep_systems(
     path: str, overrides: list[str], param: ParamRange, values: np.ndarray
-) -> list[StroboscopicMap | Any]:
+) -> list[System]:
     """The scenario's system at every value (each validated: a value out of the
     parameter's range is an error naming it)."""
     systems = []
