@@ -15,6 +15,8 @@ import math
 from collections.abc import Callable
 from dataclasses import dataclass
 
+from rubcosim.components.root_finding import F_CUR, X_CUR, advance, bracket, crossed_end
+
 
 @dataclass(frozen=True)
 class Indicator:
@@ -120,70 +122,20 @@ def locate(
     """Locate the crossing between ``ta`` (before) and ``tb`` (beyond) to ``t_tol``.
 
     ``probe(t)`` runs the coupled system onto ``t`` and returns the indicator and
-    its rate there.  Returns the time on the far side of the crossing (the
+    its rate there.  The trial times come from the engines' locator
+    (:mod:`rubcosim.components.root_finding`: three-point interpolation inside
+    the bracket).  Returns the time on the far side of the crossing (the
     indicator has crossed, by at most the tolerance) and the number of probes.
     The system is left at the last probe, which the caller may need to redo.
     """
     sign = -1.0 if ind.direction < 0 else 1.0
-    lo, g_lo, r_lo = ta, ga, ra
-    hi, g_hi, r_hi = tb, gb, rb
-    has_rate = ind.rate is not None
-    pts = [(ta, ga), (tb, gb)]
-    if has_rate and sign * g_hi >= 0.0 and r_hi != 0.0 and abs(g_hi / r_hi) <= t_tol:
-        return hi, 0
-    trials = stalls = 0
-    guess = _first_guess(lo, g_lo, r_lo, hi, g_hi, r_hi, has_rate)
-    while trials < max_trials and hi - lo > t_tol:
-        width = hi - lo
-        margin = 0.01 * width
-        t = min(max(guess, lo + margin), hi - margin)
-        g, r = probe(t)
+    if ind.rate is not None and sign * gb >= 0.0 and rb != 0.0 and abs(gb / rb) <= t_tol:
+        return tb, 0  # the end of the step is within the tolerance of the crossing
+    # the locator's convention: positive before the event, <= 0 once it has happened
+    s = bracket(ta, -sign * ga, tb, -sign * gb, t_tol)
+    trials = 0
+    while trials < max_trials and not advance(s):
+        g, _ = probe(float(s[X_CUR]))
         trials += 1
-        pts.append((t, g))
-        if sign * g >= 0.0:
-            hi, g_hi, r_hi = t, g, r
-        else:
-            lo, g_lo, r_lo = t, g, r
-        if has_rate and r != 0.0 and abs(g / r) <= t_tol and sign * g >= 0.0:
-            break
-        stalls = stalls + 1 if hi - lo > 0.5 * width else 0
-        if stalls >= 2:
-            guess, stalls = 0.5 * (lo + hi), 0
-        else:
-            guess = _next_guess(t, g, r, pts, has_rate, lo, hi, t_tol)
-    return hi, trials
-
-
-def _first_guess(lo, g_lo, r_lo, hi, g_hi, r_hi, has_rate) -> float:
-    if has_rate:
-        a, b, c, d = _hermite_cubic(g_lo, r_lo, g_hi, r_hi, hi - lo)
-        # Newton on the cubic from the secant root
-        th = g_lo / (g_lo - g_hi) if g_lo != g_hi else 0.5
-        for _ in range(8):
-            dp = (3.0 * a * th + 2.0 * b) * th + c
-            if dp == 0.0:
-                break
-            th -= (((a * th + b) * th + c) * th + d) / dp
-        if 0.0 < th < 1.0:
-            return lo + th * (hi - lo)
-    return lo + g_lo / (g_lo - g_hi) * (hi - lo) if g_lo != g_hi else 0.5 * (lo + hi)
-
-
-def _next_guess(t, g, r, pts, has_rate, lo, hi, t_tol) -> float:
-    if has_rate and r != 0.0:
-        # Newton, aimed a little past the root (the crossed side is later in time) so
-        # that the next probe closes the bracket
-        guess = t - g / r + 0.5 * t_tol
-        if lo < guess < hi:
-            return guess
-    (t0, g0), (t1, g1), (t2, g2) = pts[-3:]
-    if g0 != g1 and g1 != g2 and g0 != g2:
-        # inverse quadratic interpolation through the last three points
-        guess = (
-            t0 * g1 * g2 / ((g0 - g1) * (g0 - g2))
-            + t1 * g0 * g2 / ((g1 - g0) * (g1 - g2))
-            + t2 * g0 * g1 / ((g2 - g0) * (g2 - g1))
-        )
-        if lo < guess < hi:
-            return guess
-    return 0.5 * (lo + hi)
+        s[F_CUR] = -sign * g
+    return float(crossed_end(s)), trials

@@ -29,12 +29,10 @@ Nothing here knows any physics: forces, gaps and impact laws are the units'.
 
 from __future__ import annotations
 
-import copy
 import math
 import time
 from collections import Counter, deque
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -42,81 +40,22 @@ import numpy as np
 from rubcosim.components.unit import StepError
 
 from .connections import Connection
-from .events import Indicator, crossing, locate, predicted_to_cross
+from .cosim_result import CosimError, CosimResult
+from .event_steps import EventSteps
 from .extrapolation import evaluate, polynomial
+from .ordering import evaluation_order
 from .protocols import EventProtocol
+from .rollback import Rollback
 from .settings import CosimSettings
 from .step_control import PIController
+
+__all__ = ["CosimError", "CosimResult", "Master", "evaluation_order"]
 
 CHECKPOINT_EVERY = 64
 STALL_STEPS = 1000  # accepted steps in a row at the minimum step before giving up
 
 
-class CosimError(RuntimeError):
-    """The co-simulation cannot go on; the message names the unit and the time."""
-
-
-@dataclass
-class CosimResult:
-    """Recorded outputs on the output grid, the events and the master's counters."""
-
-    t: np.ndarray
-    names: list[str]
-    values: np.ndarray  # (len(t), len(names))
-    event_t: np.ndarray
-    event_kind: list[str]
-    event_unit: list[str]
-    counters: dict[str, int]
-    status: str
-    message: str
-    t_reached: float
-    wall_time_s: float
-    settings: CosimSettings
-    input_orders: dict[str, int] = field(default_factory=dict)
-
-    @property
-    def ok(self) -> bool:
-        return self.status == "ok"
-
-    @property
-    def engine(self) -> str:
-        return f"cosim-{self.settings.backend}"
-
-    def output(self, name: str) -> np.ndarray:
-        try:
-            return self.values[:, self.names.index(name)]
-        except ValueError:
-            raise KeyError(
-                f"{name!r} was not recorded (recorded: {', '.join(self.names)})"
-            ) from None
-
-    def events_of_kind(self, kind: str) -> np.ndarray:
-        return self.event_t[[k == kind for k in self.event_kind]]
-
-
-def evaluation_order(
-    names: Sequence[str], connections: Sequence[Connection], feedthrough: Mapping[str, bool]
-) -> list[str]:
-    """Units whose outputs do not depend on their inputs first, then the others after
-    every unit they read from (a direct-feedthrough cycle is an algebraic loop)."""
-    deps = {n: set() for n in names}
-    for c in connections:
-        for s in c.sources:
-            src = s.split(".", 1)[0]
-            if feedthrough[c.unit] and feedthrough[src] and src != c.unit:
-                deps[c.unit].add(src)
-    order = [n for n in names if not feedthrough[n]]
-    pending = [n for n in names if feedthrough[n]]
-    while pending:
-        ready = [n for n in pending if deps[n] <= set(order)]
-        if not ready:
-            raise CosimError(f"algebraic loop between units {', '.join(pending)}")
-        order += ready
-        pending = [n for n in pending if n not in ready]
-    return order
-
-
-class Master:
+class Master(EventSteps, Rollback):
     """Runs coupled units from ``t_start`` to ``t_end``.
 
     ``units`` maps a name to a unit (a :class:`rubcosim.components.unit.Unit` or an
@@ -281,96 +220,6 @@ class Master:
             self.counters["iterations"] += 1
         return given, real, err
 
-    # --- snapshots -------------------------------------------------------------------------
-    def _snapshot(self) -> dict[str, Any]:
-        self.counters["snapshots"] += 1
-        return {name: unit.get_state() for name, unit in self.units.items()}
-
-    def _restore(self, snap: Mapping[str, Any]) -> None:
-        for name, unit in self.units.items():
-            unit.set_state(snap[name])
-
-    def _free(self, snap: Mapping[str, Any] | None) -> None:
-        if snap is None:
-            return
-        for name, unit in self.units.items():
-            free = getattr(unit, "free_state", None)
-            if free is not None:
-                free(snap[name])
-
-    def _master_state(self) -> dict[str, Any]:
-        return copy.deepcopy(
-            {
-                "time": self.time,
-                "h": self.h,
-                "err_prev": self.pi.err_prev,
-                "hist": self.hist,
-                "scale": self.scale,
-                "accel": self.accel,
-                "out": self.out,
-                "protocols": [p.state for p in self.protocols],
-                "rows": len(self.rows),
-                "events": len(self.events),
-                "k_out": self.k_out,
-                "recent": list(self.recent_events),
-            }
-        )
-
-    def _set_master_state(self, s: dict[str, Any]) -> None:
-        s = copy.deepcopy(s)
-        self.time, self.h, self.pi.err_prev = s["time"], s["h"], s["err_prev"]
-        self.hist, self.scale, self.accel, self.out = s["hist"], s["scale"], s["accel"], s["out"]
-        for p, state in zip(self.protocols, s["protocols"], strict=True):
-            p.state = state
-        del self.rows[s["rows"] :]
-        del self.events[s["events"] :]
-        self.k_out = s["k_out"]
-        self.recent_events = deque(s["recent"])
-
-    # --- events ----------------------------------------------------------------------------
-    def _indicators(self) -> list[tuple[Indicator, EventProtocol]]:
-        if self.settings.events == "off":
-            return []
-        return [(ind, p) for p in self.protocols for ind in p.indicators(self)]
-
-    def _value(self, ind: Indicator) -> tuple[float, float]:
-        out = self.out[ind.unit]
-        return out[ind.output], (out[ind.rate] if ind.rate else 0.0)
-
-    def _may_cross(self, inds, h: float) -> bool:
-        for ind, _ in inds:
-            if ind.rate is None:
-                return True  # no rate to predict from: always be ready to roll back
-            g, r = self._value(ind)
-            key = (ind.unit, ind.output)
-            if key not in self.accel or predicted_to_cross(ind, g, r, self.accel[key], h):
-                return True
-        return False
-
-    def _learn_rates(self, before: Mapping, h: float) -> None:
-        """Running bound on the second derivative of every indicator that has a rate."""
-        for (unit, output, rate), (_, r0) in before.items():
-            if rate is None:
-                continue
-            r1 = self.out[unit][rate]
-            key = (unit, output)
-            self.accel[key] = max(self.accel.get(key, 0.0), abs(r1 - r0) / h)
-
-    def _first_crossing(self, inds, before: Mapping, t: float, h: float):
-        """The indicator whose crossing inside ``[t, t + h]`` comes first, as
-        ``(estimated offset, bracket, indicator, protocol)``, or None."""
-        best = None
-        for ind, proto in inds:
-            ga, ra = before[(ind.unit, ind.output, ind.rate)]
-            gb, rb = self._value(ind)
-            bracket = crossing(ind, ga, gb, h, ra, rb)
-            if bracket is None:
-                continue
-            est = bracket[0] if bracket[0] > 0.0 else _secant_offset(ga, gb, bracket[1])
-            if best is None or est < best[0]:
-                best = (est, bracket, ind, proto)
-        return best
-
     # --- the run ---------------------------------------------------------------------------
     def run(
         self, t_start: float, t_end: float, output_times: np.ndarray, record: Sequence[str]
@@ -513,43 +362,6 @@ class Master:
         for name, unit in self.units.items():
             self.out[name] = unit.get_outputs()
 
-    def _redo(self, t: float, h: float, snap: Any):
-        self._restore(snap)
-        given, real, _ = self._step(t, h, snap)
-        return given, real
-
-    def _locate(self, hit, before, t: float, h: float, snap: Any):
-        """Cut the step at the first crossing; returns (h, given, real) with the units
-        there, or Nones when a predicted interior crossing is not confirmed."""
-        _, (lo, hi), ind, _ = hit
-        self._full_h = h
-        last = [math.nan]
-
-        def probe(tq: float) -> tuple[float, float]:
-            self._restore(snap)
-            self._step(t, tq - t, snap)
-            last[0] = tq
-            self.counters["event_probes"] += 1
-            return self._value(ind)
-
-        sign = -1.0 if ind.direction < 0 else 1.0
-        ga, ra = before[(ind.unit, ind.output, ind.rate)]
-        if lo > 0.0:
-            ga, ra = probe(t + lo)
-            if sign * ga >= 0.0:
-                return None, None, None
-        if hi < h:
-            gb, rb = probe(t + hi)
-            if sign * gb < 0.0:
-                return None, None, None
-        else:
-            gb, rb = self._value(ind)
-        t_ev, _ = locate(probe, ind, t + lo, ga, ra, t + hi, gb, rb, self.t_tol)
-        if last[0] != t_ev:
-            probe(t_ev)
-        _, given, real = self._last_round
-        return t_ev - t, given, real
-
     def _accept(self, t: float, h: float, given, real, before) -> None:
         self.time = t + h
         for key, value in real.items():
@@ -561,25 +373,6 @@ class Master:
         if h > 0.0:
             self._learn_rates(before, h)
         self.counters["accepted"] += 1
-
-    def _event(self, ind: Indicator, proto: EventProtocol) -> None:
-        for name in self.left_limit_units:
-            self.units[name].do_step(self.time, 0.0)  # it keeps the pre-event inputs
-        kind = proto.handle(self, ind)
-        self.events.append((self.time, kind, ind.unit))
-        self.counters["events"] += 1
-        self.counters[f"events_{kind}"] += 1
-        real = self.settle()
-        self.hist = {k: [(self.time, v)] for k, v in real.items()}
-        self.pi.restart()
-        self.recent_events.append(self.time)
-        while self.recent_events and self.recent_events[0] < self.time - self.period:
-            self.recent_events.popleft()
-        if len(self.recent_events) > self.settings.max_events_per_period:
-            raise CosimError(
-                f"{ind.unit}: more than {self.settings.max_events_per_period} events within one "
-                f"forcing period before t = {self.time:.9g} s (cosim.max_events_per_period)"
-            )
 
     def _check_finite(self) -> None:
         for name, out in self.out.items():
@@ -595,7 +388,3 @@ class Master:
                     f"{self.time:.9g} s; the coupled model diverges (if the monolithic "
                     "engines diverge too, the model itself is unstable)"
                 )
-
-
-def _secant_offset(ga: float, gb: float, h: float) -> float:
-    return h * ga / (ga - gb) if ga != gb else h

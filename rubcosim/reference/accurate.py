@@ -22,15 +22,19 @@ from .core import (
     STATUS_OK,
     STATUS_STEP_TOO_SMALL,
     after_step,
-    full_rhs_alloc,
     needs_dense,
     new_event_state,
     new_workspace,
-    next_breakpoint,
     record_point,
+)
+from .event_search import (
     sides_from,
     start_sides,
     step_end_events,
+)
+from .history import (
+    full_rhs_alloc,
+    next_breakpoint,
 )
 from .system import N_DELAYED
 

@@ -36,15 +36,19 @@ from .core import (
     STATUS_OK,
     STATUS_STEP_TOO_SMALL,
     after_step,
-    full_rhs,
     needs_dense,
     new_event_state,
     new_workspace,
-    next_breakpoint,
     record_point,
+)
+from .event_search import (
     sides_from,
     start_sides,
     step_end_events,
+)
+from .history import (
+    full_rhs,
+    next_breakpoint,
 )
 from .system import N_DELAYED, N_EVENTS
 

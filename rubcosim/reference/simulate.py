@@ -18,13 +18,15 @@ from .core import (
     C_RHS,
     C_STATUS,
     C_STEPS,
-    HM_OVERFLOW,
     N_COUNTERS,
-    Q_DROPPED,
     STATUS_HISTORY_OVERFLOW,
     STATUS_MESSAGES,
     STATUS_OK,
     new_event_log,
+)
+from .history import (
+    HM_OVERFLOW,
+    Q_DROPPED,
     new_history,
 )
 from .system import KIND_NAMES

@@ -1,0 +1,51 @@
+"""What a co-simulation returns, and how it fails."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .settings import CosimSettings
+
+
+class CosimError(RuntimeError):
+    """The co-simulation cannot go on; the message names the unit and the time."""
+
+
+@dataclass
+class CosimResult:
+    """Recorded outputs on the output grid, the events and the master's counters."""
+
+    t: np.ndarray
+    names: list[str]
+    values: np.ndarray  # (len(t), len(names))
+    event_t: np.ndarray
+    event_kind: list[str]
+    event_unit: list[str]
+    counters: dict[str, int]
+    status: str
+    message: str
+    t_reached: float
+    wall_time_s: float
+    settings: CosimSettings
+    input_orders: dict[str, int] = field(default_factory=dict)
+
+    @property
+    def ok(self) -> bool:
+        return self.status == "ok"
+
+    @property
+    def engine(self) -> str:
+        return f"cosim-{self.settings.backend}"
+
+    def output(self, name: str) -> np.ndarray:
+        try:
+            return self.values[:, self.names.index(name)]
+        except ValueError:
+            raise KeyError(
+                f"{name!r} was not recorded (recorded: {', '.join(self.names)})"
+            ) from None
+
+    def events_of_kind(self, kind: str) -> np.ndarray:
+        return self.event_t[[k == kind for k in self.event_kind]]

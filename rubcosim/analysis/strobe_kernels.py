@@ -1,0 +1,217 @@
+"""Compiled loops of the stroboscopic maps: one orbit, many maps in one call, the
+obstacle gap of many states.
+
+Each forcing period is one call of the ``fast`` engine's compiled integrator
+from inside these loops, so a sweep or a cell mapping pays no Python per
+period (:mod:`.maps` wraps them).
+"""
+
+from __future__ import annotations
+
+import numba as nb
+import numpy as np
+
+from rubcosim.reference import system as S
+from rubcosim.reference.core import C_EVENTS, C_STATUS, N_COUNTERS, STATUS_OK
+from rubcosim.reference.fast import integrate
+
+
+@nb.njit(cache=True)
+def _period_events(evlog, n_events):
+    """Impacts and contact onsets among the first ``n_events`` logged events."""
+    kinds = evlog[1]
+    m = 0
+    for i in range(min(n_events, kinds.shape[0])):
+        if kinds[i] == S.KIND_IMPACT or kinds[i] == S.KIND_CONTACT_ON:
+            m += 1
+    return m
+
+
+@nb.njit(cache=True)
+def _log_impacts(evlog, n_events, imp_t, imp_y, imp_count):
+    """Append the logged impacts and contact onsets to the impact-section buffers."""
+    times, kinds, states = evlog[0], evlog[1], evlog[4]
+    for i in range(min(n_events, kinds.shape[0])):
+        if kinds[i] == S.KIND_IMPACT or kinds[i] == S.KIND_CONTACT_ON:
+            c = imp_count[0]
+            if c < imp_t.shape[0]:
+                imp_t[c] = times[i]
+                for j in range(imp_y.shape[1]):
+                    imp_y[c, j] = states[i, j]
+            imp_count[0] = c + 1
+
+
+@nb.njit(cache=True)
+def _new_log(max_events, n):
+    return (
+        np.empty(max_events),
+        np.empty(max_events, dtype=np.int64),
+        np.empty(max_events, dtype=np.int64),
+        np.empty(max_events, dtype=np.int64),
+        np.empty((max_events, n)),
+    )
+
+
+@nb.njit(cache=True)
+def strobe_run(
+    y0,
+    mode0,
+    t0,
+    period,
+    n_skip,
+    n_keep,
+    p,
+    ip,
+    rtol,
+    atol,
+    max_step,
+    max_events,
+    points,
+    impacts,
+    modes,
+    imp_t,
+    imp_y,
+    imp_count,
+):
+    """Integrate ``n_skip + n_keep`` periods from ``(t0, y0, mode0)``.
+
+    Writes the state at the end of each of the last ``n_keep`` periods to
+    ``points[k]``, that period's impacts to ``impacts[k]`` and the discrete
+    mode there to ``modes[k]``.  The impacts of the kept periods (the impact
+    section) go to ``imp_t`` (time) and ``imp_y`` (state just after), as many
+    as fit; ``imp_count[0]`` counts them.  Returns
+    ``(status, periods_done, mode)``; the state after the last period done is
+    ``points[periods_done - n_skip - 1]`` when ``periods_done > n_skip``.
+    """
+    n = y0.shape[0]
+    y = y0.copy()
+    y_end = np.empty(n)
+    mode = mode0
+    t_eval = np.empty(0)
+    rec = np.empty((0, 0))
+    evlog = _new_log(max_events, n)
+    queue = np.zeros(1)
+    qmeta = np.zeros(3, dtype=np.int64)
+    cnt = np.zeros(N_COUNTERS, dtype=np.int64)
+    for k in range(n_skip + n_keep):
+        cnt[:] = 0
+        qmeta[:] = 0
+        t_a = t0 + k * period
+        t_b = t0 + (k + 1) * period
+        t, mode = integrate(
+            y,
+            mode,
+            t_a,
+            t_b,
+            p,
+            ip,
+            rtol,
+            atol,
+            max_step,
+            t_eval,
+            rec,
+            evlog,
+            None,
+            queue,
+            qmeta,
+            cnt,
+            y_end,
+        )
+        if cnt[C_STATUS] != STATUS_OK:
+            return cnt[C_STATUS], k, mode
+        for i in range(n):
+            y[i] = y_end[i]
+        if k >= n_skip:
+            for i in range(n):
+                points[k - n_skip, i] = y[i]
+            impacts[k - n_skip] = _period_events(evlog, cnt[C_EVENTS])
+            modes[k - n_skip] = mode
+            _log_impacts(evlog, cnt[C_EVENTS], imp_t, imp_y, imp_count)
+    return STATUS_OK, n_skip + n_keep, mode
+
+
+@nb.njit(cache=True)
+def map_many(
+    Y0,
+    modes0,
+    t0,
+    period,
+    n_periods,
+    p,
+    ip,
+    rtol,
+    atol,
+    max_step,
+    max_events,
+    Y1,
+    modes1,
+    impacts,
+    status,
+):
+    """Map every row of ``Y0`` through ``n_periods`` forcing periods (cell mapping's kernel).
+
+    ``impacts[j]`` counts all impacts along the way; ``status[j]`` is the
+    engine's status (0: ok) and row j of ``Y1`` is NaN when it is not 0.
+    """
+    n = Y0.shape[1]
+    pts = np.empty((1, n))
+    imp = np.zeros(1, dtype=np.int64)
+    md = np.zeros(1, dtype=np.int64)
+    no_t = np.empty(0)
+    no_y = np.empty((0, n))
+    no_c = np.zeros(1, dtype=np.int64)
+    for j in range(Y0.shape[0]):
+        total = 0
+        y = Y0[j].copy()
+        mode = modes0[j]
+        st = STATUS_OK
+        for k in range(n_periods):
+            st, done, mode = strobe_run(
+                y,
+                mode,
+                t0 + k * period,
+                period,
+                0,
+                1,
+                p,
+                ip,
+                rtol,
+                atol,
+                max_step,
+                max_events,
+                pts,
+                imp,
+                md,
+                no_t,
+                no_y,
+                no_c,
+            )
+            if st != STATUS_OK:
+                break
+            total += imp[0]
+            for i in range(n):
+                y[i] = pts[0, i]
+        status[j] = st
+        impacts[j] = total
+        modes1[j] = mode
+        for i in range(n):
+            Y1[j, i] = y[i] if st == STATUS_OK else np.nan
+
+
+@nb.njit(cache=True)
+def obstacle_gaps(Y, mode, p, ip, gap, rate):
+    """For each state row: the smallest event function among the rigid-obstacle slots
+    (those that fire on a decrease through zero: the gaps) in ``mode``, and its rate
+    (``NaN`` without a rate slot); ``inf`` when there is no obstacle."""
+    g = np.empty(S.N_EVENTS)
+    dirs = np.empty(S.N_EVENTS, dtype=np.int64)
+    rates = np.empty(S.N_EVENTS, dtype=np.int64)
+    yd = np.zeros(S.N_DELAYED)
+    for j in range(Y.shape[0]):
+        S.events(0.0, Y[j], yd, mode, p, ip, g, dirs, rates)
+        gap[j] = np.inf
+        rate[j] = np.nan
+        for k in range(S.N_EVENTS):
+            if dirs[k] == -1 and g[k] < gap[j]:
+                gap[j] = g[k]
+                rate[j] = g[rates[k]] if rates[k] >= 0 else np.nan

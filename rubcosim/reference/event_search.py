@@ -1,0 +1,216 @@
+"""Finding and locating events on a step's dense output (both engines).
+
+After every accepted step the event functions at its two ends are compared;
+a sign change, or a rate companion that changes sign (a contact that opens
+and closes inside the step, a rebound that returns), brackets an event, which
+:func:`rubcosim.components.root_finding` locates: Feng & Yang's three-point
+interpolation, safeguarded by the bracket (Brent's method).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba as nb
+import numpy as np
+
+from rubcosim.components.root_finding import F_CUR, MAX_TRIALS, X_CUR, advance, bracket, crossed_end
+
+from .history import delayed_state, dense_eval
+from .system import N_EVENTS, events
+
+
+@nb.njit(cache=True, inline="always")
+def event_value(slot, t, seg, ctx, hist, scratch):
+    """Event function ``slot`` at time t on the dense segment ``seg``.
+
+    ``seg = (t_old, h, y_old, F)``; ``ctx = (mode, p, ip)``;
+    ``scratch = (ybuf, yd, g, dirs, rates)``.  ``hist`` stays an argument of
+    its own so that numba can compile away the delay when it is None.
+    """
+    t_old, h, y_old, F = seg
+    mode, p, ip = ctx
+    ybuf, yd, g, dirs, rates = scratch
+    dense_eval(t_old, h, y_old, F, t, ybuf, ybuf.shape[0])
+    delayed_state(t, p, ip, hist, yd)
+    events(t, ybuf, yd, mode, p, ip, g, dirs, rates)
+    return g[slot]
+
+
+@nb.njit(cache=True)
+def locate(slot, sgn, ta, fa, tb, fb, seg, ctx, hist, scratch):
+    """Bracket [ta, tb] of a zero of ``sgn * g_slot`` (fa > 0 >= fb), located to
+    round-off of t; returns the end point on the crossed side (sgn * g <= 0), so
+    the event is known to have happened there."""
+    s = bracket(ta, fa, tb, fb, 4.0 * np.finfo(np.float64).eps * max(abs(ta), abs(tb), 1.0))
+    for _ in range(MAX_TRIALS):
+        if advance(s):
+            break
+        s[F_CUR] = sgn * event_value(slot, s[X_CUR], seg, ctx, hist, scratch)
+    return crossed_end(s)
+
+
+@nb.njit(cache=True)
+def pre_side(direction, side):
+    """Sign of an event function before it fires: +1 for a falling event, -1
+    for a rising one, the current side for a breakpoint; 0 if undetermined."""
+    if direction == -1:
+        return 1.0
+    if direction == 1:
+        return -1.0
+    return float(side)
+
+
+RETURN_LEVELS = 60  # first_return samples down to 2**-60 of the step: below round-off of t
+
+
+@nb.njit(cache=True)
+def first_return(k, j, sgn, t_a, t_b, rate_a, fb, seg, ctx, hist, scratch):
+    """Bracket ``(left, right)`` of the first return of ``sgn * g_k`` through zero in a
+    step that starts on the surface moving away (``rate_a = sgn * g_j(t_a) > 0``)
+    and ends with the rate on the same side (``fb = sgn * g_k(t_b)``); ``(-1, -1)``
+    if it does not come back.
+
+    g rose, and turned an even number of times, if at all: it may have come back
+    through zero (and even left again) inside the step, which neither end shows.
+    A rebound much shorter than the step (chattering) is the usual case, so the
+    rate is sampled at ``t_a + h / 2**i``, i = RETURN_LEVELS..0; its first turn
+    (the top) starts the bracket, which ends at the first sample on the crossed
+    side, or at the bottom of the return if g turns up again there.
+    """
+    h = t_b - t_a
+    tp, rp = t_a, rate_a
+    top = -1.0
+    last = t_a  # latest point with sgn * g > 0 and no zero of it found before
+    for i in range(RETURN_LEVELS, -1, -1):
+        tm = t_b if i == 0 else t_a + math.ldexp(h, -i)
+        if tm <= tp:
+            continue
+        rm = sgn * event_value(j, tm, seg, ctx, hist, scratch)
+        if top < 0.0:
+            if rm > 0.0:
+                tp, rp = tm, rm
+                continue
+            top = locate(j, sgn, tp, rp, tm, rm, seg, ctx, hist, scratch)
+            last = top
+        if sgn * event_value(k, tm, seg, ctx, hist, scratch) <= 0.0:
+            return last, tm
+        if rm > 0.0:
+            # turned up again before reaching zero? the bottom of the return decides
+            fa = -rp if rp < 0.0 else 1e-300
+            bottom = locate(j, -sgn, tp, fa, tm, -rm, seg, ctx, hist, scratch)
+            if sgn * event_value(k, bottom, seg, ctx, hist, scratch) <= 0.0:
+                return last, bottom
+            last = bottom
+            break
+        last = tm
+        tp, rp = tm, rm
+    if fb <= 0.0:
+        return last, t_b
+    return -1.0, -1.0
+
+
+@nb.njit(cache=True)
+def find_event(t_a, t_b, seg, ctx, hist, scratch, g_a, side_a, dirs_a, rates_a, g_b):
+    """Earliest event in (t_a, t_b] of the step's dense output, or (-1, t_b).
+
+    ``side_a[k]`` is the side (+1/-1) of slot k at t_a, ``g_b`` the event
+    functions at t_b.  A contact that opens and closes inside the step
+    (grazing) is found through the rate companion: the extremum of g is
+    located first and g is checked there.
+    """
+    best_k = -1
+    best_t = t_b
+    for k in range(N_EVENTS):
+        if dirs_a[k] == 0:
+            continue
+        sgn = pre_side(dirs_a[k], side_a[k])
+        if sgn == 0.0:
+            continue
+        left = t_a
+        right = -1.0
+        j = rates_a[k]
+        # Starting on the surface (just after an event) and moving away?
+        leaving = j >= 0 and sgn * g_a[k] <= 0.0 and sgn * g_a[j] > 0.0
+        if leaving and sgn * g_b[j] >= 0.0:
+            # The rate has not turned between the ends: a return through zero, if
+            # any, lies between turns inside the step.  A bracket from t_a would let
+            # the locator settle on the zero at t_a itself (the same event then
+            # fires again at one instant), and g_b alone misses a return that has
+            # left again by t_b.
+            left, right = first_return(
+                k, j, sgn, t_a, t_b, sgn * g_a[j], sgn * g_b[k], seg, ctx, hist, scratch
+            )
+        elif sgn * g_b[k] <= 0.0:
+            right = t_b
+            if leaving:
+                # moving away, then back through zero: bracket from the extremum,
+                # not from the start
+                left = locate(j, sgn, t_a, sgn * g_a[j], t_b, sgn * g_b[j], seg, ctx, hist, scratch)
+        elif j >= 0 and sgn * g_a[j] < 0.0 and sgn * g_b[j] > 0.0:
+            # Approaching, then receding within the step: does it touch at the extremum?
+            ts = locate(j, -sgn, t_a, -sgn * g_a[j], t_b, -sgn * g_b[j], seg, ctx, hist, scratch)
+            if sgn * event_value(k, ts, seg, ctx, hist, scratch) <= 0.0:
+                right = ts
+        if right < 0.0 or right > best_t or (right == best_t and best_k >= 0):
+            continue
+        fl = sgn * event_value(k, left, seg, ctx, hist, scratch)
+        fr = sgn * event_value(k, right, seg, ctx, hist, scratch)
+        if fl <= 0.0:
+            # Round-off at the start of a step just after an event: treat it as the pre side.
+            fl = 1e-300
+        if fr > 0.0:
+            continue
+        te = locate(k, sgn, left, fl, right, fr, seg, ctx, hist, scratch)
+        if best_k < 0 or te < best_t:
+            best_k = k
+            best_t = te
+    return best_k, best_t
+
+
+@nb.njit(cache=True)
+def event_candidate(g_a, side_a, dirs_a, rates_a, g_b):
+    """Whether the step may hold an event: a sign change, or a rate companion
+    that changes sign (a possible grazing contact).  Cheap; no dense output."""
+    for k in range(N_EVENTS):
+        if dirs_a[k] == 0:
+            continue
+        sgn = pre_side(dirs_a[k], side_a[k])
+        if sgn == 0.0:
+            continue
+        if sgn * g_b[k] <= 0.0:
+            return True
+        j = rates_a[k]
+        if j >= 0 and sgn * g_a[j] < 0.0 and sgn * g_b[j] > 0.0:
+            return True
+        if j >= 0 and sgn * g_a[k] <= 0.0 and sgn * g_a[j] > 0.0 and sgn * g_b[j] >= 0.0:
+            # left the surface at the start: it may have come back inside the step
+            return True
+    return False
+
+
+@nb.njit(cache=True)
+def step_end_events(t, y, mode, p, ip, hist, yd, g_b, dirs_b, rates_b):
+    """Event functions at the end of a step (same mode as at its start)."""
+    delayed_state(t, p, ip, hist, yd)
+    events(t, y, yd, mode, p, ip, g_b, dirs_b, rates_b)
+
+
+@nb.njit(cache=True)
+def start_sides(t, y, mode, p, ip, hist, g, dirs, rates, side, yd, forced_slot, forced_side):
+    """Event functions at the start of a step and the side each one is on."""
+    delayed_state(t, p, ip, hist, yd)
+    events(t, y, yd, mode, p, ip, g, dirs, rates)
+    for k in range(N_EVENTS):
+        side[k] = 1 if g[k] > 0.0 else (-1 if g[k] < 0.0 else 0)
+    if forced_slot >= 0:
+        side[forced_slot] = forced_side
+        # The step starts at this slot's event: its function is zero there (the
+        # event map's projection onto the surface may leave a round-off residue).
+        g[forced_slot] = 0.0
+
+
+@nb.njit(cache=True)
+def sides_from(g, side):
+    for k in range(N_EVENTS):
+        side[k] = 1 if g[k] > 0.0 else (-1 if g[k] < 0.0 else 0)

@@ -1,0 +1,67 @@
+"""The one event locator (components.root_finding) against closed-form roots and scipy."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from scipy.optimize import brentq
+
+from rubcosim.components.root_finding import (
+    F_CUR,
+    MAX_TRIALS,
+    X_CUR,
+    advance,
+    bracket,
+    crossed_end,
+)
+
+
+def run(f, ta: float, tb: float, xtol: float) -> tuple[float, int]:
+    s = bracket(ta, f(ta), tb, f(tb), xtol)
+    trials = 0
+    while trials < MAX_TRIALS and not advance(s):
+        s[F_CUR] = f(s[X_CUR])
+        trials += 1
+    return crossed_end(s), trials
+
+
+@pytest.mark.parametrize("level", [0.1, 0.5, 0.9])
+def test_locates_a_closed_form_root_on_the_crossed_side(level: float) -> None:
+    # cos t - level falls through zero at acos(level) on [0, pi/2]
+    def f(t: float) -> float:
+        return math.cos(t) - level
+
+    t, trials = run(f, 0.0, 0.5 * math.pi, 1e-13)
+    root = math.acos(level)
+    assert f(t) <= 0.0  # the event has happened at the returned time
+    assert abs(t - root) <= 1e-13
+    # three-point interpolation: far fewer trials than bisection's log2(width / xtol) = 44
+    assert trials <= 12
+
+
+def test_agrees_with_scipy_brentq() -> None:
+    def f(t: float) -> float:
+        return 1.0 - t**3 - 0.3 * math.sin(7.0 * t)
+
+    t, _ = run(f, 0.0, 2.0, 1e-14)
+    assert abs(t - brentq(f, 0.0, 2.0, xtol=1e-14)) <= 2e-14
+
+
+def test_equal_values_fall_back_to_bisection() -> None:
+    # a staircase: flat stretches give equal values at different points, where the
+    # interpolation's denominators vanish; the locator must bisect, not fail
+    def f(t: float) -> float:
+        return 1.0 if t < 0.3 else -1.0
+
+    t, trials = run(f, 0.0, 1.0, 1e-12)
+    assert 0.3 <= t <= 0.3 + 1e-12
+    assert trials <= 45
+
+
+def test_a_zero_at_the_bracket_end_needs_no_trial() -> None:
+    s = bracket(0.0, 1.0, 2.0, 0.0, 1e-12)
+    assert advance(s)
+    assert crossed_end(s) == 2.0
+    assert np.isfinite(s).all()
