@@ -56,3 +56,49 @@ def step_factor(err, rejected):
         factor = MAX_FACTOR if err == 0.0 else min(MAX_FACTOR, SAFETY * err**ERROR_EXPONENT)
         return min(1.0, factor) if rejected else factor
     return max(MIN_FACTOR, SAFETY * err**ERROR_EXPONENT)
+
+
+@njit(inline="always")
+def stage_point(K, s, y, h, ytmp):
+    """The state at which stage ``s`` evaluates the right-hand side:
+    ``ytmp = y + h * sum_{j<s} A[s, j] K[j]``."""
+    for i in range(y.shape[0]):
+        acc = 0.0
+        for j in range(s):
+            acc += A[s, j] * K[j, i]
+        ytmp[i] = y[i] + acc * h
+
+
+@njit(inline="always")
+def solution_point(K, y, h, y_new):
+    """The step's 8th-order solution ``y_new = y + h * sum_j B[j] K[j]``."""
+    for i in range(y.shape[0]):
+        acc = 0.0
+        for j in range(N_STAGES):
+            acc += B[j] * K[j, i]
+        y_new[i] = y[i] + h * acc
+
+
+@njit(inline="always")
+def dense_from_stages(h, y_old, y_new, f_new, K, F):
+    """scipy's DOP853 dense-output coefficients ``F`` (7 x n) from all ``N_EXT`` stages."""
+    for i in range(y_old.shape[0]):
+        delta = y_new[i] - y_old[i]
+        F[0, i] = delta
+        F[1, i] = h * K[0, i] - delta
+        F[2, i] = 2.0 * delta - h * (f_new[i] + K[0, i])
+        for r in range(D.shape[0]):
+            acc = 0.0
+            for j in range(N_EXT):
+                acc += D[r, j] * K[j, i]
+            F[3 + r, i] = h * acc
+
+
+@njit(inline="always")
+def next_step(err, h, rejected):
+    """The step controller: ``(accepted, next step size)`` after a trial step of size
+    ``h`` (s) with error norm ``err``; a non-finite error (a stage left the model's
+    domain) rejects and shrinks as scipy does."""
+    if not math.isfinite(err):
+        return False, h * MIN_FACTOR
+    return err < 1.0, h * step_factor(err, rejected)

@@ -26,8 +26,17 @@ if not _BUNDLED or os.environ.get("RUBCOSIM_NUMBA") == "1":
 USE_NUMBA = _numba is not None
 
 
-def njit(function: Callable[..., Any]) -> Callable[..., Any]:
-    """``numba.njit(cache=True)`` when numba is in use, else ``function`` itself."""
+def njit(
+    function: Callable[..., Any] | None = None, *, inline: str = "never"
+) -> Callable[..., Any]:
+    """``numba.njit(cache=True)`` when numba is in use, else ``function`` itself.
+
+    ``inline="always"`` inlines a small kernel into its callers at numba's IR
+    level (the stage arithmetic of a Runge-Kutta step, called 12 times a step);
+    used bare (``@njit``) or with options (``@njit(inline="always")``).
+    """
+    if function is None:
+        return lambda f: njit(f, inline=inline)
     if not USE_NUMBA:
         return function
-    return _numba.njit(cache=True)(function)
+    return _numba.njit(cache=True, inline=inline)(function)

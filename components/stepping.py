@@ -23,7 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.integrate import solve_ivp
 
-from .dop853 import MIN_FACTOR, N_STAGES, A, B, C, error_norm, step_factor
+from .dop853 import N_STAGES, C, error_norm, next_step, solution_point, stage_point
 from .jit import USE_NUMBA, njit
 from .unit_odes import unit_rhs
 
@@ -41,19 +41,11 @@ def _rk_step(kind, t, y, f, h, p, u, t0, K, y_new, f_new, ytmp, dy):
     for i in range(n):
         K[0, i] = f[i]
     for s in range(1, N_STAGES):
-        for i in range(n):
-            acc = 0.0
-            for j in range(s):
-                acc += A[s, j] * K[j, i]
-            ytmp[i] = y[i] + acc * h
+        stage_point(K, s, y, h, ytmp)
         unit_rhs(kind, t + C[s] * h, ytmp, p, u, t0, dy)
         for i in range(n):
             K[s, i] = dy[i]
-    for i in range(n):
-        acc = 0.0
-        for j in range(N_STAGES):
-            acc += B[j] * K[j, i]
-        y_new[i] = y[i] + h * acc
+    solution_point(K, y, h, y_new)
     unit_rhs(kind, t + h, y_new, p, u, t0, f_new)
     for i in range(n):
         K[N_STAGES, i] = f_new[i]
@@ -92,15 +84,9 @@ def advance(kind, t0, t_end, y, h, p, u, rtol, atol):
             t_new = t_end
         hs = t_new - t
         _rk_step(kind, t, y, f, hs, p, u, t0, K, y_new, f_new, ytmp, dy)
-        err = error_norm(K, hs, y, y_new, rtol, tol)
-        if not np.isfinite(err):
-            # a trial stage left the model's domain: shrink, as scipy does
-            h = hs * MIN_FACTOR
-            rejected = True
-            continue
-        factor = step_factor(err, rejected)
-        if err >= 1.0:
-            h = hs * factor
+        accepted, h_proposed = next_step(error_norm(K, hs, y, y_new, rtol, tol), hs, rejected)
+        if not accepted:
+            h = h_proposed
             rejected = True
             continue
         for i in range(n):
@@ -109,7 +95,7 @@ def advance(kind, t0, t_end, y, h, p, u, rtol, atol):
         t = t_new
         rejected = False
         # a step cut short by the end of the span says nothing against the one proposed
-        h = max(hs * factor, h) if clipped else hs * factor
+        h = max(h_proposed, h) if clipped else h_proposed
     for i in range(n):
         if not np.isfinite(y[i]):
             return h, NOT_FINITE

@@ -3,10 +3,10 @@
 An indicator is a unit output whose zero crossing (in a given direction) is
 an event, optionally with another output that is its exact time derivative
 (the stator's ``gap_rate``).  With the derivative the master sees crossings
-that happen and undo themselves inside a step (cubic Hermite interpolation)
-and locates them by Newton steps; without it, by inverse quadratic
-interpolation through three points.  Every trial is safeguarded by the
-bracket, and bisection takes over when a trial does not shrink it.
+that happen and undo themselves inside a step (cubic Hermite interpolation).
+A bracketed crossing is located by the engines' locator
+(:mod:`rubcosim.components.root_finding`), the master re-running the step
+onto each trial time.
 """
 
 from __future__ import annotations

@@ -14,15 +14,14 @@ import numba as nb
 import numpy as np
 
 from rubcosim.components.dop853 import (
-    MIN_FACTOR,
     N_EXT,
     N_STAGES,
-    A,
-    B,
     C,
-    D,
+    dense_from_stages,
     error_norm,
-    step_factor,
+    next_step,
+    solution_point,
+    stage_point,
 )
 
 from .core import (
@@ -92,27 +91,13 @@ def initial_step(t0, y0, f0, t_bound, max_step, rtol, atol, mode, p, ip, hist, y
 @nb.njit(cache=True)
 def dense_coefficients(t_old, h, y_old, y_new, f_new, K, mode, p, ip, hist, yd, F, ytmp, dy, cnt):
     """DOP853 dense output (scipy's F layout) for the step just taken."""
-    n = y_old.shape[0]
     for s in range(N_STAGES + 1, N_EXT):
-        for i in range(n):
-            acc = 0.0
-            for j in range(s):
-                acc += A[s, j] * K[j, i]
-            ytmp[i] = y_old[i] + acc * h
+        stage_point(K, s, y_old, h, ytmp)
         full_rhs(t_old + C[s] * h, ytmp, mode, p, ip, hist, yd, dy)
-        for i in range(n):
+        for i in range(y_old.shape[0]):
             K[s, i] = dy[i]
         cnt[C_RHS] += 1
-    for i in range(n):
-        delta = y_new[i] - y_old[i]
-        F[0, i] = delta
-        F[1, i] = h * K[0, i] - delta
-        F[2, i] = 2.0 * delta - h * (f_new[i] + K[0, i])
-        for r in range(D.shape[0]):
-            acc = 0.0
-            for j in range(N_EXT):
-                acc += D[r, j] * K[j, i]
-            F[3 + r, i] = h * acc
+    dense_from_stages(h, y_old, y_new, f_new, K, F)
 
 
 @nb.njit(cache=True)
@@ -121,20 +106,12 @@ def rk_step(t, y, f, h, mode, p, ip, hist, yd, K, y_new, f_new, ytmp, dy, cnt):
     for i in range(n):
         K[0, i] = f[i]
     for s in range(1, N_STAGES):
-        for i in range(n):
-            acc = 0.0
-            for j in range(s):
-                acc += A[s, j] * K[j, i]
-            ytmp[i] = y[i] + acc * h
+        stage_point(K, s, y, h, ytmp)
         # a scratch vector, not a row view of K: a view costs a reference count per stage
         full_rhs(t + C[s] * h, ytmp, mode, p, ip, hist, yd, dy)
         for i in range(n):
             K[s, i] = dy[i]
-    for i in range(n):
-        acc = 0.0
-        for j in range(N_STAGES):
-            acc += B[j] * K[j, i]
-        y_new[i] = y[i] + h * acc
+    solution_point(K, y, h, y_new)
     full_rhs(t + h, y_new, mode, p, ip, hist, yd, f_new)
     for i in range(n):
         K[N_STAGES, i] = f_new[i]
@@ -212,16 +189,8 @@ def integrate(
                 h = t_new - t
                 h_abs = abs(h)
                 rk_step(t, y, f, h, mode, p, ip, hist, yd, K, y_new, f_new, ytmp, dy, cnt)
-                err = error_norm(K, h, y, y_new, rtol, atol)
-                if not math.isfinite(err):
-                    # A trial stage left the model's domain (e.g. the journal
-                    # outside the oil film): reject and shrink, as scipy does.
-                    h_abs *= MIN_FACTOR
-                    rejected = True
-                    cnt[C_REJECTED] += 1
-                    continue
-                h_abs *= step_factor(err, rejected)
-                if err < 1.0:
+                accepted, h_abs = next_step(error_norm(K, h, y, y_new, rtol, atol), h_abs, rejected)
+                if accepted:
                     break
                 rejected = True
                 cnt[C_REJECTED] += 1
