@@ -14,11 +14,13 @@ Layout::
 
 ``--set role.name=value`` overrides any unit parameter (initial states
 included: ``rotor.x0``...) or setting (``sim.t_end``, ``cosim.algorithm``...).  Every error is a
-:class:`ScenarioError` naming the file, the key and what is allowed.
+:class:`ScenarioError` naming the file, the key and what is allowed.  A scenario keeps
+the parsed table and its overrides: :meth:`Scenario.with_params` rebuilds it with more.
 """
 
 from __future__ import annotations
 
+import copy
 import math
 import tomllib
 from collections.abc import Iterable, Mapping
@@ -72,6 +74,20 @@ class Scenario:
     cosim: CosimSettings = field(default_factory=CosimSettings)
     connections: dict[str, Any] = field(default_factory=dict)
     fmus: dict[str, ForeignFmu] = field(default_factory=dict)
+    # the parsed scenario table and every override applied to it ("role.name": value)
+    data: dict[str, Any] = field(default_factory=dict, repr=False)
+    overrides: dict[str, Any] = field(default_factory=dict)
+
+    def with_params(self, params: Mapping[str, Any]) -> Scenario:
+        """A new validated scenario: this one's table with its overrides and then
+        ``params`` (``{"stator.clearance": 1e-4}``, ``{"sim.t_end": 2.0}``; SI units, as
+        in the scenario file) applied.  Raises :class:`ScenarioError` naming a bad key."""
+        try:
+            return build_scenario(
+                self.data, params={**self.overrides, **params}, source=self.source
+            )
+        except ScenarioError as exc:
+            raise ScenarioError(_prefixed(self.source, exc)) from None
 
     @property
     def outputs(self) -> list[str]:
@@ -87,15 +103,29 @@ class Scenario:
         return [*self.system.units, *self.fmus]
 
 
+def _prefixed(source: str, exc: Exception) -> str:
+    return f"{Path(source).name}: {exc}" if source else str(exc)
+
+
+def _split_key(key: Any, text: str) -> tuple[str, str]:
+    if not isinstance(key, str) or key.count(".") != 1 or not all(key.split(".")):
+        raise ScenarioError(f"--set {text!r}: expected unit.parameter=value")
+    role, name = key.split(".")
+    return role, name
+
+
+def _plain(value: Any) -> Any:
+    """A numpy scalar as the Python number it holds (parameters are checked by type)."""
+    item = getattr(value, "item", None)
+    return item() if callable(item) and getattr(value, "shape", None) == () else value
+
+
 def parse_override(text: str) -> tuple[str, str, Any]:
     """Split ``role.name=value``; the value is read as a TOML value, else as a string."""
     if "=" not in text:
         raise ScenarioError(f"--set {text!r}: expected unit.parameter=value")
     key, raw = text.split("=", 1)
-    key = key.strip()
-    if key.count(".") != 1 or not all(key.split(".")):
-        raise ScenarioError(f"--set {text!r}: expected unit.parameter=value")
-    role, name = key.split(".")
+    role, name = _split_key(key.strip(), text)
     try:
         value = tomllib.loads(f"v = {raw.strip()}")["v"]
     except tomllib.TOMLDecodeError:
@@ -165,11 +195,31 @@ def _names(where: str, value: Any) -> list[str]:
     return list(value)
 
 
+def override_table(overrides: Iterable[str], params: Mapping[str, Any] | None) -> dict[str, Any]:
+    """``--set`` strings, then ``params``, as one table ``{"role.name": value}``."""
+    table: dict[str, Any] = {}
+    for text in overrides:
+        role, name, value = parse_override(text)
+        table.pop(f"{role}.{name}", None)  # the last setting of a key wins
+        table[f"{role}.{name}"] = value
+    for key, value in (params or {}).items():
+        _split_key(key, f"{key}={value!r}")
+        table.pop(key, None)
+        table[key] = _plain(value)
+    return table
+
+
 def build_scenario(
-    data: Mapping[str, Any], overrides: Iterable[str] = (), source: str = ""
+    data: Mapping[str, Any],
+    overrides: Iterable[str] = (),
+    source: str = "",
+    params: Mapping[str, Any] | None = None,
 ) -> Scenario:
-    """Validate a parsed scenario, apply ``--set`` overrides and assemble the system."""
-    data = _check_table("the scenario", data)
+    """Validate a parsed scenario, apply ``--set`` overrides (``"role.name=value"``
+    strings) and then ``params`` (``{"role.name": value}``), and assemble the system."""
+    original = copy.deepcopy(_check_table("the scenario", data))
+    data = copy.deepcopy(original)  # the tables below are edited in place
+    applied = override_table(overrides, params)
     unknown = sorted(set(data) - set(TOP_LEVEL))
     if unknown:
         raise ScenarioError(
@@ -211,8 +261,8 @@ def build_scenario(
             connections.update({f"{key}.{k}": v for k, v in value.items()})
         else:
             connections[key] = value
-    for text in overrides:
-        role, name, value = parse_override(text)
+    for key, value in applied.items():
+        role, name = key.split(".")
         if role == "cosim":
             cosim_raw[name] = value
         elif role == "sim":
@@ -307,6 +357,8 @@ def build_scenario(
         cosim=cosim,
         connections=connections,
         fmus=fmus,
+        data=original,
+        overrides=applied,
     )
     if cosim.order and sorted(cosim.order) != sorted(scenario.unit_names):
         raise ScenarioError(
@@ -330,11 +382,14 @@ def build_scenario(
     return scenario
 
 
-def load_scenario(path: str | Path, overrides: Iterable[str] = ()) -> Scenario:
-    """Read, validate and assemble a scenario file."""
-    path = Path(path)
-    if not path.is_file():
-        raise ScenarioError(f"{path}: no such scenario file")
+def load_scenario(
+    path: str | Path, overrides: Iterable[str] = (), params: Mapping[str, Any] | None = None
+) -> Scenario:
+    """Read, validate and assemble a scenario file, or a bundled scenario by name
+    (``"jeffcott_rigid_stator"``, see :func:`rubcosim.bundled.bundled_scenarios`)."""
+    from .bundled import scenario_path
+
+    path = scenario_path(path)
     try:
         data = tomllib.loads(path.read_text(encoding="utf-8"))
     except tomllib.TOMLDecodeError as exc:
@@ -342,6 +397,6 @@ def load_scenario(path: str | Path, overrides: Iterable[str] = ()) -> Scenario:
     except UnicodeDecodeError:
         raise ScenarioError(f"{path}: not a UTF-8 text file") from None
     try:
-        return build_scenario(data, overrides, source=str(path))
+        return build_scenario(data, overrides, source=str(path), params=params)
     except ScenarioError as exc:
-        raise ScenarioError(f"{path.name}: {exc}") from None
+        raise ScenarioError(_prefixed(str(path), exc)) from None
