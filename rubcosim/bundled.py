@@ -35,10 +35,10 @@ def bundled_scenarios() -> dict[str, str]:
     return out
 
 
-def scenario_path(name_or_path: str | Path) -> Path:
+def scenario_path(name_or_path: str | Path) -> Path | None:
     """The file of a scenario given as a path, or as a bundled name (``"impact_duffing"``
-    or ``"impact_duffing.toml"``) when no such file exists here.  Raises
-    :class:`rubcosim.scenario.ScenarioError` when neither exists."""
+    or ``"impact_duffing.toml"``) when no such file exists here; ``None`` when neither
+    exists."""
     path = Path(name_or_path)
     if path.is_file():
         return path
@@ -48,8 +48,4 @@ def scenario_path(name_or_path: str | Path) -> Path:
         bundled = scenario_dir() / f"{stem}{SUFFIX}"
         if stem and bundled.is_file():
             return bundled
-    from .scenario import ScenarioError
-
-    raise ScenarioError(
-        f"{path}: no such scenario file (nor a bundled scenario; `rubcosim scenarios` lists them)"
-    )
+    return None

@@ -5,7 +5,6 @@ Writing the results (``results.csv``, plots) is :mod:`rubcosim.writing`'s.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from typing import Any
 
@@ -15,6 +14,16 @@ from rubcosim.reference.simulate import Result, output_grid, simulate
 from rubcosim.reference.system import KIND_NAMES
 
 from .scenario import Scenario, ScenarioError
+from .timegrid import strobe_times
+
+__all__ = [
+    "CosimRun",
+    "ScenarioRun",
+    "report",
+    "run_cosim_scenario",
+    "run_scenario",
+    "strobe_times",
+]
 
 
 @dataclass
@@ -96,16 +105,6 @@ def cosim_report(run: CosimRun) -> dict[str, Any]:
         "parameters": dict(sc.parameters),
         "outputs": sc.outputs,
     }
-
-
-def strobe_times(scenario: Scenario) -> np.ndarray:
-    """Fixed-phase section t = (2 pi k + phase)/w after ``sim.poincare_discard``."""
-    sim = scenario.sim
-    period = scenario.system.forcing_period
-    shift = sim["poincare_phase"] / (2.0 * math.pi) * period
-    first = math.ceil((sim["t_start"] + sim["poincare_discard"] - shift) / period - 1e-9)
-    last = math.floor((sim["t_end"] - shift) / period + 1e-9)
-    return shift + period * np.arange(first, last + 1)
 
 
 def run_scenario(scenario: Scenario, engine: str | None = None) -> ScenarioRun:

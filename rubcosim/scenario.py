@@ -389,7 +389,13 @@ def load_scenario(
     (``"jeffcott_rigid_stator"``, see :func:`rubcosim.bundled.bundled_scenarios`)."""
     from .bundled import scenario_path
 
-    path = scenario_path(path)
+    found = scenario_path(path)
+    if found is None:
+        raise ScenarioError(
+            f"{path}: no such scenario file (nor a bundled scenario: `rubcosim scenarios` "
+            "lists them)"
+        )
+    path = found
     try:
         data = tomllib.loads(path.read_text(encoding="utf-8"))
     except tomllib.TOMLDecodeError as exc:
