@@ -21,7 +21,6 @@ the parsed table and its overrides: :meth:`Scenario.with_params` rebuilds it wit
 from __future__ import annotations
 
 import copy
-import math
 import tomllib
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
@@ -33,30 +32,13 @@ from rubcosim.components.parameters import ParameterError
 from rubcosim.orchestrator.connections import CouplingError
 from rubcosim.orchestrator.foreign import ForeignFmu, ForeignFmuError, foreign_fmu
 from rubcosim.orchestrator.settings import CosimSettings, SettingsError, cosim_settings
-from rubcosim.reference.assemble import DEFAULT_CHATTER_TOL, System, build_system, make_unit
-from rubcosim.reference.simulate import ENGINES, MIN_RTOL
+from rubcosim.reference.assemble import System, build_system, make_unit
 
+from .errors import ScenarioError
+from .simsettings import SIM_DEFAULTS, sim_settings
 
-class ScenarioError(ValueError):
-    """The scenario file or an override is malformed; the message names the key."""
-
-
-SIM_DEFAULTS: dict[str, Any] = {
-    "t_start": 0.0,
-    "t_end": None,
-    "output_step": None,
-    "engine": "fast",
-    "rtol": 1e-10,
-    "atol": None,
-    "max_events": 100_000,
-    "chatter_tol": DEFAULT_CHATTER_TOL,
-    "poincare_discard": 0.0,
-    "poincare_phase": 0.0,
-}
 PLOT_KINDS = ("orbit", "timeseries", "poincare")
 SCENARIO_KEYS = ("name", "description")
-MAX_EVENTS_LIMIT = 10_000_000
-MAX_OUTPUT_POINTS = 10_000_000
 TOP_LEVEL = ("scenario", "sim", "units", "fmus", "outputs", "plots", "cosim", "connections")
 
 
@@ -137,56 +119,6 @@ def _check_table(where: str, value: Any) -> dict[str, Any]:
     if not isinstance(value, dict):
         raise ScenarioError(f"{where} must be a table")
     return value
-
-
-def _sim_settings(raw: Mapping[str, Any]) -> dict[str, Any]:
-    unknown = sorted(set(raw) - set(SIM_DEFAULTS))
-    if unknown:
-        raise ScenarioError(f"sim.{unknown[0]} is not a setting (known: {', '.join(SIM_DEFAULTS)})")
-    sim = dict(SIM_DEFAULTS)
-    sim.update(raw)
-    if sim["t_end"] is None:
-        raise ScenarioError("sim.t_end is required")
-    for key in ("t_start", "t_end", "rtol", "chatter_tol", "poincare_discard", "poincare_phase"):
-        sim[key] = _number(f"sim.{key}", sim[key])
-    for key in ("output_step", "atol"):
-        if sim[key] is not None:
-            sim[key] = _number(f"sim.{key}", sim[key])
-            if sim[key] <= 0.0:
-                raise ScenarioError(f"sim.{key} = {sim[key]!r} must be > 0")
-    if sim["t_end"] <= sim["t_start"]:
-        raise ScenarioError(
-            f"sim.t_end = {sim['t_end']!r} must be greater than sim.t_start = {sim['t_start']!r}"
-        )
-    if not MIN_RTOL <= sim["rtol"] < 1.0:
-        raise ScenarioError(f"sim.rtol = {sim['rtol']!r} is outside [{MIN_RTOL:.3g}, 1)")
-    if not 0.0 < sim["chatter_tol"] < 1.0:
-        raise ScenarioError(f"sim.chatter_tol = {sim['chatter_tol']!r} is outside (0, 1)")
-    if not isinstance(sim["engine"], str) or sim["engine"] not in ENGINES:
-        raise ScenarioError(f"sim.engine = {sim['engine']!r} is not one of {', '.join(ENGINES)}")
-    me = sim["max_events"]
-    if isinstance(me, bool) or not isinstance(me, int) or not 1 <= me <= MAX_EVENTS_LIMIT:
-        raise ScenarioError(
-            f"sim.max_events = {me!r} must be an integer in [1, {MAX_EVENTS_LIMIT}]"
-        )
-    step = sim["output_step"] or (sim["t_end"] - sim["t_start"]) / 1000.0
-    if (sim["t_end"] - sim["t_start"]) / step > MAX_OUTPUT_POINTS:
-        raise ScenarioError(
-            f"sim.output_step = {step!r} gives more than {MAX_OUTPUT_POINTS} output points"
-        )
-    if sim["output_step"] is None:
-        sim["output_step"] = step
-    if sim["atol"] is None:
-        sim["atol"] = sim["rtol"]
-    if sim["poincare_discard"] < 0.0:
-        raise ScenarioError("sim.poincare_discard must be >= 0")
-    return sim
-
-
-def _number(key: str, value: Any) -> float:
-    if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
-        raise ScenarioError(f"{key} = {value!r} is not a finite number")
-    return float(value)
 
 
 def _names(where: str, value: Any) -> list[str]:
@@ -283,7 +215,7 @@ def build_scenario(
             raise ScenarioError(
                 f"--set {role}.{name}: unit {role!r} is not in this scenario (known: {known})"
             )
-    sim = _sim_settings(sim_raw)
+    sim = sim_settings(sim_raw)
     try:
         cosim = cosim_settings(cosim_raw)
     except SettingsError as exc:
