@@ -59,20 +59,28 @@ def _rtol(rtol: float | None, default: float) -> float:
     return rtol
 
 
-def _scenario(scenario: ScenarioLike) -> Scenario:
-    return scenario if isinstance(scenario, Scenario) else load(scenario)
+def _scenario(scenario: ScenarioLike, params: Params = None) -> Scenario:
+    if isinstance(scenario, Scenario) and params is None:
+        return scenario
+    return load(scenario, params)
 
 
-def simulate(scenario: ScenarioLike, engine: str | None = None) -> SimulationResult:
+def simulate(
+    scenario: ScenarioLike,
+    engine: str | None = None,
+    set: Params = None,  # noqa: A002
+) -> SimulationResult:
     """Integrate the scenario with a monolithic engine: ``"fast"`` (compiled DOP853 with
-    event location) or ``"accurate"`` (scipy); default its ``sim.engine``."""
+    event location) or ``"accurate"`` (scipy); default its ``sim.engine``.  ``set``:
+    overrides as in :func:`load` (``rc.simulate("impact_duffing", set={"sim.t_end":
+    50.0})``, like FMPy's ``simulate_fmu(filename, start_values=...)``)."""
     from rubcosim.reference.simulate import ENGINES
 
     from .runner import run_scenario
 
     if engine is not None and engine not in ENGINES:
         raise ScenarioError(f"engine = {engine!r} is not one of {', '.join(ENGINES)}")
-    return SimulationResult(run_scenario(_scenario(scenario), engine=engine))
+    return SimulationResult(run_scenario(_scenario(scenario, set), engine=engine))
 
 
 def _settings(scenario: Scenario, backend: str | None) -> Any:
@@ -83,22 +91,31 @@ def _settings(scenario: Scenario, backend: str | None) -> Any:
     return scenario.cosim if backend is None else replace(scenario.cosim, backend=backend)
 
 
-def cosimulate(scenario: ScenarioLike, backend: str | None = None) -> SimulationResult:
+def cosimulate(
+    scenario: ScenarioLike,
+    backend: str | None = None,
+    set: Params = None,  # noqa: A002
+) -> SimulationResult:
     """Co-simulate the scenario's units with the orchestrator: ``backend="direct"``
     (in-process units) or ``"fmu"`` (the FMUs through fmpy); default its
-    ``cosim.backend``.  Its other settings come from the ``[cosim]`` table."""
+    ``cosim.backend``.  Its other settings come from the ``[cosim]`` table (``set``
+    reaches them: ``{"cosim.rtol": 1e-6}``)."""
     from .runner import run_cosim_scenario
 
-    sc = _scenario(scenario)
+    sc = _scenario(scenario, set)
     return SimulationResult(run_cosim_scenario(sc, _settings(sc, backend).backend))
 
 
-def check(scenario: ScenarioLike, backend: str | None = None) -> CheckResult:
+def check(
+    scenario: ScenarioLike,
+    backend: str | None = None,
+    set: Params = None,  # noqa: A002
+) -> CheckResult:
     """Co-simulate the scenario and compare it with the ``accurate`` engine (``rubcosim
-    check``): per output the largest difference, impact counts and times."""
+    check``): per output the largest difference, impact counts and times (s)."""
     from rubcosim.orchestrator.check import compare
 
-    sc = _scenario(scenario)
+    sc = _scenario(scenario, set)
     report, ref, co, rows = compare(sc, _settings(sc, backend))
     return CheckResult(sc, report, ref, co, rows)
 

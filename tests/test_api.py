@@ -2,6 +2,7 @@
 scenarios (also in a built wheel) and the README's example."""
 
 import re
+import shutil
 import subprocess
 import sys
 import zipfile
@@ -137,7 +138,7 @@ def test_to_csv_is_the_csv_of_rubcosim_run(tmp_path, capsys):
     out = tmp_path / "run"
     argv = ["run", "impact_oscillator_linear", "--set", "sim.t_end=5.0", "--out", str(out)]
     assert main(argv) == 0  # a bundled scenario by name
-    res = rc.simulate(rc.load("impact_oscillator_linear", set=OSC_SHORT))
+    res = rc.simulate("impact_oscillator_linear", set=OSC_SHORT)  # FMPy-like: name + values
     res.to_csv(tmp_path / "api.csv")
     assert (tmp_path / "api.csv").read_bytes() == (out / "results.csv").read_bytes()
     co = rc.cosimulate(rc.load("impact_oscillator_linear", set=OSC_SHORT), backend="direct")
@@ -159,10 +160,17 @@ def test_cli_lists_the_bundled_scenarios(capsys):
 
 
 def test_the_wheel_ships_the_scenarios(tmp_path):
+    # built from a copy of the sources: setuptools leaves build/ beside pyproject.toml
+    src = tmp_path / "src"
+    skip = shutil.ignore_patterns("__pycache__", "*.egg-info", "build")
+    for name in ("rubcosim", "components", "fmus", "orchestrator", "scenarios"):
+        shutil.copytree(REPO / name, src / name, ignore=skip)
+    for name in ("pyproject.toml", "README.md"):
+        shutil.copy(REPO / name, src / name)
     wheels = tmp_path / "wheels"
     pip = [sys.executable, "-m", "pip"]
     subprocess.run(
-        [*pip, "wheel", "--no-deps", "-q", "-w", str(wheels), str(REPO)],
+        [*pip, "wheel", "--no-deps", "-q", "-w", str(wheels), str(src)],
         check=True,
         capture_output=True,
         cwd=tmp_path,
