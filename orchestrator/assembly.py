@@ -214,7 +214,7 @@ def output_times(scenario: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The sorted union of the output grid and the stroboscopic times, and where each
     of the two lies in it (the reference run records the same times)."""
     from rubcosim.reference.simulate import output_grid
-    from rubcosim.runner import strobe_times
+    from rubcosim.timegrid import strobe_times
 
     sim = scenario.sim
     grid = output_grid(sim["t_start"], sim["t_end"], sim["output_step"])

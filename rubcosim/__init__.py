@@ -1,4 +1,13 @@
-"""rubcosim: nonsmooth rotor/stator rub-impact dynamics and its co-simulation."""
+"""rubcosim: nonsmooth rotor/stator rub-impact dynamics and its co-simulation.
+
+The Python API (:mod:`rubcosim.api`) is re-exported here and loaded on first use, so
+``import rubcosim`` stays cheap::
+
+    import rubcosim as rc
+
+    sc = rc.load("jeffcott_rigid_stator", set={"rotor.speed": 400})
+    res = rc.simulate(sc, engine="fast")
+"""
 
 from __future__ import annotations
 
@@ -6,8 +15,58 @@ import hashlib
 import os
 from importlib.util import find_spec
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 __version__ = "0.1.0"
+
+# name -> the module that defines it; imported on first access (PEP 562)
+_API = {
+    "load": "api",
+    "simulate": "api",
+    "cosimulate": "api",
+    "check": "api",
+    "sweep": "api",
+    "basins": "api",
+    "scenarios": "api",
+    "Scenario": "scenario",
+    "ScenarioError": "scenario",
+    "SimulationResult": "results",
+    "CheckResult": "results",
+}
+__all__ = [
+    "__version__",
+    "load",
+    "simulate",
+    "cosimulate",
+    "check",
+    "sweep",
+    "basins",
+    "scenarios",
+    "Scenario",
+    "ScenarioError",
+    "SimulationResult",
+    "CheckResult",
+]
+
+if TYPE_CHECKING:
+    from .api import basins, check, cosimulate, load, scenarios, simulate, sweep
+    from .results import CheckResult, SimulationResult
+    from .scenario import Scenario, ScenarioError
+
+
+def __getattr__(name: str) -> Any:
+    module = _API.get(name)
+    if module is None:
+        raise AttributeError(f"module 'rubcosim' has no attribute {name!r}")
+    from importlib import import_module
+
+    value = getattr(import_module(f".{module}", __name__), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted({*globals(), *_API})
 
 
 def _numba_cache_dir() -> Path:

@@ -1,13 +1,11 @@
-"""Run a scenario and write its results: ``results.csv``, ``report.json``, plots."""
+"""Run a scenario with a monolithic engine or co-simulate it, and its ``report.json``.
+
+Writing the results (``results.csv``, plots) is :mod:`rubcosim.writing`'s.
+"""
 
 from __future__ import annotations
 
-import json
-import math
-import shutil
-import tempfile
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -16,10 +14,16 @@ from rubcosim.reference.simulate import Result, output_grid, simulate
 from rubcosim.reference.system import KIND_NAMES
 
 from .scenario import Scenario, ScenarioError
+from .timegrid import strobe_times
 
-
-class OutputPathError(ScenarioError):
-    """The output directory cannot be used (nothing has been written)."""
+__all__ = [
+    "CosimRun",
+    "ScenarioRun",
+    "report",
+    "run_cosim_scenario",
+    "run_scenario",
+    "strobe_times",
+]
 
 
 @dataclass
@@ -103,16 +107,6 @@ def cosim_report(run: CosimRun) -> dict[str, Any]:
     }
 
 
-def strobe_times(scenario: Scenario) -> np.ndarray:
-    """Fixed-phase section t = (2 pi k + phase)/w after ``sim.poincare_discard``."""
-    sim = scenario.sim
-    period = scenario.system.forcing_period
-    shift = sim["poincare_phase"] / (2.0 * math.pi) * period
-    first = math.ceil((sim["t_start"] + sim["poincare_discard"] - shift) / period - 1e-9)
-    last = math.floor((sim["t_end"] - shift) / period + 1e-9)
-    return shift + period * np.arange(first, last + 1)
-
-
 def run_scenario(scenario: Scenario, engine: str | None = None) -> ScenarioRun:
     if scenario.fmus:
         name = next(iter(scenario.fmus))
@@ -172,68 +166,3 @@ def report(run: ScenarioRun | CosimRun) -> dict[str, Any]:
         "final_mode": r.final_mode,
         "outputs": sc.outputs,
     }
-
-
-def check_output_dir(out_dir: str | Path) -> Path:
-    """Refuse an output path that is a file, the working directory or one of its
-    parents, or a non-empty directory that is not an earlier result."""
-    out = Path(out_dir)
-    resolved = out.resolve()
-    if out.exists() and not out.is_dir():
-        raise OutputPathError(f"--out {out_dir}: exists and is not a directory")
-    cwd = Path.cwd().resolve()
-    if resolved == cwd or resolved in cwd.parents:
-        raise OutputPathError(f"--out {out_dir}: is the working directory or contains it")
-    if out.is_dir() and any(out.iterdir()) and not (out / "report.json").is_file():
-        # Only an earlier result (it has a report.json) is ever replaced.
-        raise OutputPathError(
-            f"--out {out_dir}: is a non-empty directory that holds no earlier result"
-        )
-    return out
-
-
-def write_results(run: ScenarioRun | CosimRun, out_dir: str | Path) -> Path:
-    """Write everything into a fresh directory, then move it to ``out_dir``.
-
-    A previous result in ``out_dir`` is replaced only once the new one is
-    complete, so an interrupted run never leaves a half-written result.
-    """
-    from . import plots  # matplotlib only when writing
-
-    def fill(tmp: Path) -> None:
-        names = run.scenario.outputs
-        keep = run.time <= run.result.t_reached + 1e-12
-        table = np.column_stack([run.time[keep]] + [run.series(n)[keep] for n in names])
-        np.savetxt(
-            tmp / "results.csv",
-            table,
-            delimiter=",",
-            header=",".join(["time", *names]),
-            comments="",
-            fmt="%.17g",
-        )
-        (tmp / "report.json").write_text(json.dumps(report(run), indent=2) + "\n", encoding="utf-8")
-        plots.scenario_plots(run, tmp)
-
-    return write_directory(out_dir, fill)
-
-
-def write_directory(out_dir: str | Path, fill: Any) -> Path:
-    """Let ``fill(tmp)`` write a fresh directory, then move it to ``out_dir``, replacing
-    an earlier result only once the new one is complete."""
-    out = check_output_dir(out_dir)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
-    try:
-        fill(tmp)
-        if out.exists():
-            old = Path(tempfile.mkdtemp(prefix=f".{out.name}.old.", dir=out.parent))
-            out.rename(old / out.name)
-            tmp.rename(out)
-            shutil.rmtree(old)
-        else:
-            tmp.rename(out)
-    except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
-        raise
-    return out

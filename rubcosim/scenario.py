@@ -14,12 +14,13 @@ Layout::
 
 ``--set role.name=value`` overrides any unit parameter (initial states
 included: ``rotor.x0``...) or setting (``sim.t_end``, ``cosim.algorithm``...).  Every error is a
-:class:`ScenarioError` naming the file, the key and what is allowed.
+:class:`ScenarioError` naming the file, the key and what is allowed.  A scenario keeps
+the parsed table and its overrides: :meth:`Scenario.with_params` rebuilds it with more.
 """
 
 from __future__ import annotations
 
-import math
+import copy
 import tomllib
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
@@ -31,30 +32,13 @@ from rubcosim.components.parameters import ParameterError
 from rubcosim.orchestrator.connections import CouplingError
 from rubcosim.orchestrator.foreign import ForeignFmu, ForeignFmuError, foreign_fmu
 from rubcosim.orchestrator.settings import CosimSettings, SettingsError, cosim_settings
-from rubcosim.reference.assemble import DEFAULT_CHATTER_TOL, System, build_system, make_unit
-from rubcosim.reference.simulate import ENGINES, MIN_RTOL
+from rubcosim.reference.assemble import System, build_system, make_unit
 
+from .errors import ScenarioError
+from .simsettings import SIM_DEFAULTS, sim_settings
 
-class ScenarioError(ValueError):
-    """The scenario file or an override is malformed; the message names the key."""
-
-
-SIM_DEFAULTS: dict[str, Any] = {
-    "t_start": 0.0,
-    "t_end": None,
-    "output_step": None,
-    "engine": "fast",
-    "rtol": 1e-10,
-    "atol": None,
-    "max_events": 100_000,
-    "chatter_tol": DEFAULT_CHATTER_TOL,
-    "poincare_discard": 0.0,
-    "poincare_phase": 0.0,
-}
 PLOT_KINDS = ("orbit", "timeseries", "poincare")
 SCENARIO_KEYS = ("name", "description")
-MAX_EVENTS_LIMIT = 10_000_000
-MAX_OUTPUT_POINTS = 10_000_000
 TOP_LEVEL = ("scenario", "sim", "units", "fmus", "outputs", "plots", "cosim", "connections")
 
 
@@ -72,6 +56,20 @@ class Scenario:
     cosim: CosimSettings = field(default_factory=CosimSettings)
     connections: dict[str, Any] = field(default_factory=dict)
     fmus: dict[str, ForeignFmu] = field(default_factory=dict)
+    # the parsed scenario table and every override applied to it ("role.name": value)
+    data: dict[str, Any] = field(default_factory=dict, repr=False)
+    overrides: dict[str, Any] = field(default_factory=dict)
+
+    def with_params(self, params: Mapping[str, Any]) -> Scenario:
+        """A new validated scenario: this one's table with its overrides and then
+        ``params`` (``{"stator.clearance": 1e-4}``, ``{"sim.t_end": 2.0}``; SI units, as
+        in the scenario file) applied.  Raises :class:`ScenarioError` naming a bad key."""
+        try:
+            return build_scenario(
+                self.data, params={**self.overrides, **params}, source=self.source
+            )
+        except ScenarioError as exc:
+            raise ScenarioError(_prefixed(self.source, exc)) from None
 
     @property
     def outputs(self) -> list[str]:
@@ -87,15 +85,29 @@ class Scenario:
         return [*self.system.units, *self.fmus]
 
 
+def _prefixed(source: str, exc: Exception) -> str:
+    return f"{Path(source).name}: {exc}" if source else str(exc)
+
+
+def _split_key(key: Any, text: str) -> tuple[str, str]:
+    if not isinstance(key, str) or key.count(".") != 1 or not all(key.split(".")):
+        raise ScenarioError(f"--set {text!r}: expected unit.parameter=value")
+    role, name = key.split(".")
+    return role, name
+
+
+def _plain(value: Any) -> Any:
+    """A numpy scalar as the Python number it holds (parameters are checked by type)."""
+    item = getattr(value, "item", None)
+    return item() if callable(item) and getattr(value, "shape", None) == () else value
+
+
 def parse_override(text: str) -> tuple[str, str, Any]:
     """Split ``role.name=value``; the value is read as a TOML value, else as a string."""
     if "=" not in text:
         raise ScenarioError(f"--set {text!r}: expected unit.parameter=value")
     key, raw = text.split("=", 1)
-    key = key.strip()
-    if key.count(".") != 1 or not all(key.split(".")):
-        raise ScenarioError(f"--set {text!r}: expected unit.parameter=value")
-    role, name = key.split(".")
+    role, name = _split_key(key.strip(), text)
     try:
         value = tomllib.loads(f"v = {raw.strip()}")["v"]
     except tomllib.TOMLDecodeError:
@@ -109,67 +121,37 @@ def _check_table(where: str, value: Any) -> dict[str, Any]:
     return value
 
 
-def _sim_settings(raw: Mapping[str, Any]) -> dict[str, Any]:
-    unknown = sorted(set(raw) - set(SIM_DEFAULTS))
-    if unknown:
-        raise ScenarioError(f"sim.{unknown[0]} is not a setting (known: {', '.join(SIM_DEFAULTS)})")
-    sim = dict(SIM_DEFAULTS)
-    sim.update(raw)
-    if sim["t_end"] is None:
-        raise ScenarioError("sim.t_end is required")
-    for key in ("t_start", "t_end", "rtol", "chatter_tol", "poincare_discard", "poincare_phase"):
-        sim[key] = _number(f"sim.{key}", sim[key])
-    for key in ("output_step", "atol"):
-        if sim[key] is not None:
-            sim[key] = _number(f"sim.{key}", sim[key])
-            if sim[key] <= 0.0:
-                raise ScenarioError(f"sim.{key} = {sim[key]!r} must be > 0")
-    if sim["t_end"] <= sim["t_start"]:
-        raise ScenarioError(
-            f"sim.t_end = {sim['t_end']!r} must be greater than sim.t_start = {sim['t_start']!r}"
-        )
-    if not MIN_RTOL <= sim["rtol"] < 1.0:
-        raise ScenarioError(f"sim.rtol = {sim['rtol']!r} is outside [{MIN_RTOL:.3g}, 1)")
-    if not 0.0 < sim["chatter_tol"] < 1.0:
-        raise ScenarioError(f"sim.chatter_tol = {sim['chatter_tol']!r} is outside (0, 1)")
-    if not isinstance(sim["engine"], str) or sim["engine"] not in ENGINES:
-        raise ScenarioError(f"sim.engine = {sim['engine']!r} is not one of {', '.join(ENGINES)}")
-    me = sim["max_events"]
-    if isinstance(me, bool) or not isinstance(me, int) or not 1 <= me <= MAX_EVENTS_LIMIT:
-        raise ScenarioError(
-            f"sim.max_events = {me!r} must be an integer in [1, {MAX_EVENTS_LIMIT}]"
-        )
-    step = sim["output_step"] or (sim["t_end"] - sim["t_start"]) / 1000.0
-    if (sim["t_end"] - sim["t_start"]) / step > MAX_OUTPUT_POINTS:
-        raise ScenarioError(
-            f"sim.output_step = {step!r} gives more than {MAX_OUTPUT_POINTS} output points"
-        )
-    if sim["output_step"] is None:
-        sim["output_step"] = step
-    if sim["atol"] is None:
-        sim["atol"] = sim["rtol"]
-    if sim["poincare_discard"] < 0.0:
-        raise ScenarioError("sim.poincare_discard must be >= 0")
-    return sim
-
-
-def _number(key: str, value: Any) -> float:
-    if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
-        raise ScenarioError(f"{key} = {value!r} is not a finite number")
-    return float(value)
-
-
 def _names(where: str, value: Any) -> list[str]:
     if not isinstance(value, list) or not all(isinstance(v, str) for v in value):
         raise ScenarioError(f"{where} must be a list of output names")
     return list(value)
 
 
+def override_table(overrides: Iterable[str], params: Mapping[str, Any] | None) -> dict[str, Any]:
+    """``--set`` strings, then ``params``, as one table ``{"role.name": value}``."""
+    table: dict[str, Any] = {}
+    for text in overrides:
+        role, name, value = parse_override(text)
+        table.pop(f"{role}.{name}", None)  # the last setting of a key wins
+        table[f"{role}.{name}"] = value
+    for key, value in (params or {}).items():
+        _split_key(key, f"{key}={value!r}")
+        table.pop(key, None)
+        table[key] = _plain(value)
+    return table
+
+
 def build_scenario(
-    data: Mapping[str, Any], overrides: Iterable[str] = (), source: str = ""
+    data: Mapping[str, Any],
+    overrides: Iterable[str] = (),
+    source: str = "",
+    params: Mapping[str, Any] | None = None,
 ) -> Scenario:
-    """Validate a parsed scenario, apply ``--set`` overrides and assemble the system."""
-    data = _check_table("the scenario", data)
+    """Validate a parsed scenario, apply ``--set`` overrides (``"role.name=value"``
+    strings) and then ``params`` (``{"role.name": value}``), and assemble the system."""
+    original = copy.deepcopy(_check_table("the scenario", data))
+    data = copy.deepcopy(original)  # the tables below are edited in place
+    applied = override_table(overrides, params)
     unknown = sorted(set(data) - set(TOP_LEVEL))
     if unknown:
         raise ScenarioError(
@@ -211,8 +193,8 @@ def build_scenario(
             connections.update({f"{key}.{k}": v for k, v in value.items()})
         else:
             connections[key] = value
-    for text in overrides:
-        role, name, value = parse_override(text)
+    for key, value in applied.items():
+        role, name = key.split(".")
         if role == "cosim":
             cosim_raw[name] = value
         elif role == "sim":
@@ -233,7 +215,7 @@ def build_scenario(
             raise ScenarioError(
                 f"--set {role}.{name}: unit {role!r} is not in this scenario (known: {known})"
             )
-    sim = _sim_settings(sim_raw)
+    sim = sim_settings(sim_raw)
     try:
         cosim = cosim_settings(cosim_raw)
     except SettingsError as exc:
@@ -307,6 +289,8 @@ def build_scenario(
         cosim=cosim,
         connections=connections,
         fmus=fmus,
+        data=original,
+        overrides=applied,
     )
     if cosim.order and sorted(cosim.order) != sorted(scenario.unit_names):
         raise ScenarioError(
@@ -330,11 +314,20 @@ def build_scenario(
     return scenario
 
 
-def load_scenario(path: str | Path, overrides: Iterable[str] = ()) -> Scenario:
-    """Read, validate and assemble a scenario file."""
-    path = Path(path)
-    if not path.is_file():
-        raise ScenarioError(f"{path}: no such scenario file")
+def load_scenario(
+    path: str | Path, overrides: Iterable[str] = (), params: Mapping[str, Any] | None = None
+) -> Scenario:
+    """Read, validate and assemble a scenario file, or a bundled scenario by name
+    (``"jeffcott_rigid_stator"``, see :func:`rubcosim.bundled.bundled_scenarios`)."""
+    from .bundled import scenario_path
+
+    found = scenario_path(path)
+    if found is None:
+        raise ScenarioError(
+            f"{path}: no such scenario file (nor a bundled scenario: `rubcosim scenarios` "
+            "lists them)"
+        )
+    path = found
     try:
         data = tomllib.loads(path.read_text(encoding="utf-8"))
     except tomllib.TOMLDecodeError as exc:
@@ -342,6 +335,6 @@ def load_scenario(path: str | Path, overrides: Iterable[str] = ()) -> Scenario:
     except UnicodeDecodeError:
         raise ScenarioError(f"{path}: not a UTF-8 text file") from None
     try:
-        return build_scenario(data, overrides, source=str(path))
+        return build_scenario(data, overrides, source=str(path), params=params)
     except ScenarioError as exc:
-        raise ScenarioError(f"{path.name}: {exc}") from None
+        raise ScenarioError(_prefixed(str(path), exc)) from None

@@ -244,7 +244,6 @@ def test_sweep_shows_the_duffing_hysteresis_by_continuation(tmp_path):
     res = sweep.sweep(
         sc,
         param,
-        overrides=TWO_WELL,
         periods=8,
         discard=150,
         direction="both",
@@ -409,7 +408,7 @@ LINEAR = ["oscillator.cubic_stiffness=0.0"]  # x'' + 0.1 x' + x = F cos 2t, barr
 def test_grazing_is_located_where_the_free_amplitude_reaches_the_barrier():
     from rubcosim.analysis.grazing import grazing
 
-    g = grazing(str(DUFFING), LINEAR, "oscillator.forcing_amplitude", 2.5, 3.5)
+    g = grazing(load_scenario(DUFFING, LINEAR), "oscillator.forcing_amplitude", 2.5, 3.5)
     # free amplitude F / sqrt((1 - 4)^2 + 0.2^2) = 1 at F = sqrt(9.04)
     assert g.value == pytest.approx(math.sqrt(9.04), rel=1e-8)
     assert abs(g.normal_velocity) < 1e-6
@@ -419,18 +418,18 @@ def test_grazing_is_located_where_the_free_amplitude_reaches_the_barrier():
 
 def test_grazing_inputs_are_checked():
     from rubcosim.analysis.errors import AnalysisError
-    from rubcosim.analysis.grazing import brackets, free_overrides, locate
+    from rubcosim.analysis.grazing import brackets, free_params, locate
 
     imp = np.array([[0, 0], [0, 0], [1, 1], [1, 1]])
     assert brackets(np.arange(4.0), imp, np.zeros(4)) == [(1.0, 2.0)]
     assert brackets(np.arange(4.0), imp, np.array([0, 3, 0, 0])) == []
     elastic = load_scenario(SCENARIOS / "jeffcott_elastic_stator.toml").system
     with pytest.raises(AnalysisError, match="units.stator"):
-        free_overrides(elastic)
+        free_params(elastic)
     rigid = load_scenario(SCENARIOS / "jeffcott_rigid_stator.toml").system
-    assert free_overrides(rigid) == ["stator.clearance=100.0"]
+    assert free_params(rigid) == {"stator.clearance": 100.0}
     with pytest.raises(AnalysisError, match="no grazing there"):
-        locate(str(DUFFING), LINEAR, "oscillator.forcing_amplitude", 1.0, 2.0)
+        locate(load_scenario(DUFFING, LINEAR), "oscillator.forcing_amplitude", 1.0, 2.0)
 
 
 def test_cli_sweep_locates_grazing(tmp_path, capsys):

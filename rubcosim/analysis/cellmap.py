@@ -49,6 +49,7 @@ from .motion import classify
 from .parallel import Checkpoint, executor, run_tasks
 
 DEFAULT_CHUNK = 2000  # cells per task
+CELL_MAP_RTOL = 1e-7  # the map's tolerance: cells are far coarser than this
 LABEL_BOUNDARY = -2
 LABEL_ESCAPE = -1
 MERGE_TOL = 1e-3  # state scales: simulated motions this close are the same attractor
@@ -76,6 +77,32 @@ class Grid:
                 f"--region {self.x0:g}:{self.x1:g},{self.v0:g}:{self.v1:g}: needs finite "
                 "x0 < x1 and v0 < v1"
             )
+
+    @classmethod
+    def parse(cls, grid: str | tuple[int, int], region: str | tuple[float, ...]) -> Grid:
+        """From ``"NXxNV"`` (or ``(nx, nv)``) cells over ``"X0:X1,V0:V1"`` (or
+        ``(x0, x1, v0, v1)``, the state's units); errors quote ``--grid``/``--region``."""
+        if isinstance(grid, str):
+            try:
+                nx, nv = (int(s) for s in grid.lower().split("x"))
+            except ValueError:
+                raise AnalysisError(f"--grid {grid!r}: expected NXxNV, e.g. 200x200") from None
+            grid = (nx, nv)
+        if isinstance(region, str):
+            try:
+                xs, vs = region.split(",")
+                x0, x1 = (float(s) for s in xs.split(":"))
+                v0, v1 = (float(s) for s in vs.split(":"))
+            except ValueError:
+                raise AnalysisError(
+                    f"--region {region!r}: expected X0:X1,V0:V1, e.g. -3:1,-6:6"
+                ) from None
+            region = (x0, x1, v0, v1)
+        if len(grid) != 2 or len(region) != 4:
+            raise AnalysisError(
+                f"--grid {grid!r} / --region {region!r}: (nx, nv), (x0, x1, v0, v1)"
+            )
+        return cls(*grid, *(float(v) for v in region))
 
     @property
     def n_cells(self) -> int:
@@ -147,6 +174,8 @@ class Basins:
     saddles: list[np.ndarray]  # cell numbers of each saddle group
     chain_periods: list[int]
     motions: list[dict[str, Any]] = field(default_factory=list)
+    # what report.json states besides: parameters, state names, rtol, wall time (s)
+    info: dict[str, Any] = field(default_factory=dict)
 
     @property
     def n_attractors(self) -> int:

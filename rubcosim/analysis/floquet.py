@@ -17,6 +17,7 @@ The fixed point is first refined by Newton's method on ``P^n(y) - y``.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -147,4 +148,17 @@ def floquet_along(
             out.append(floquet_report(f))
         except (MapError, np.linalg.LinAlgError) as exc:
             out.append({"error": str(exc)})
+    return out
+
+
+def sweep_floquet(scenario: Any, result: Any, max_period: int = 8) -> dict[str, list[dict | None]]:
+    """Per direction of a sweep (``SweepResult``) of ``scenario``: the multipliers of
+    each value's periodic motion (see :func:`floquet_along`)."""
+    from .sweep import sweep_systems
+
+    systems = sweep_systems(scenario, result.param, result.values)
+    out = {}
+    for d in result.points:
+        periods = [c.get("period", 0) for c in result.classify(d)]
+        out[d] = floquet_along(systems, result.points[d], result.modes[d], periods, max_period)
     return out

@@ -30,7 +30,7 @@ from scipy.optimize import brentq
 from rubcosim.reference import system as S
 from rubcosim.reference.assemble import System
 from rubcosim.reference.simulate import simulate
-from rubcosim.scenario import load_scenario
+from rubcosim.scenario import Scenario
 
 from .errors import AnalysisError
 from .floquet import FLOQUET_RTOL, floquet
@@ -50,16 +50,16 @@ def obstacle_gap(system: System, states: np.ndarray) -> tuple[np.ndarray, np.nda
     return gap, rate
 
 
-def free_overrides(system: System) -> list[str]:
-    """``--set`` overrides that take the obstacle away."""
+def free_params(system: System) -> dict[str, Any]:
+    """The parameters (for :meth:`Scenario.with_params`) that take the obstacle away."""
     if system.family == S.FAMILY_OSCILLATOR:
         if system.units["oscillator"].params["stop"] not in ("rigid_one_sided", "rigid_two_sided"):
             raise AnalysisError("oscillator.stop: grazing is studied on rigid stops")
-        return ['oscillator.stop="none"']
+        return {"oscillator.stop": "none"}
     stator = system.units.get("stator")
     if stator is None or stator.type != "rigid":
         raise AnalysisError("units.stator: grazing is studied on a rigid stator")
-    return [f"stator.clearance={1e6 * stator.params['clearance']!r}"]
+    return {"stator.clearance": 1e6 * stator.params["clearance"]}
 
 
 @dataclass(frozen=True)
@@ -124,11 +124,11 @@ class Grazing:
         }
 
 
-def _systems(path: str, overrides: list[str], param: str, value: float) -> tuple[System, System]:
-    sets = [*overrides, f"{param}={float(value)!r}"]
-    obstacle = load_scenario(path, sets).system
-    free = load_scenario(path, [*sets, *free_overrides(obstacle)]).system
-    return obstacle, free
+def _systems(scenario: Scenario, param: str, value: float) -> tuple[System, System]:
+    """The system at ``param = value`` and the same without its obstacle."""
+    with_obstacle = scenario.with_params({param: float(value)})
+    free = with_obstacle.with_params(free_params(with_obstacle.system))
+    return with_obstacle.system, free.system
 
 
 def _free_periodic_point(free: System, guess: np.ndarray | None) -> np.ndarray:
@@ -142,14 +142,14 @@ def _free_periodic_point(free: System, guess: np.ndarray | None) -> np.ndarray:
 
 
 def locate(
-    path: str, overrides: list[str], param: str, lo: float, hi: float, xtol: float = 1e-10
+    scenario: Scenario, param: str, lo: float, hi: float, xtol: float = 1e-10
 ) -> tuple[float, np.ndarray, float]:
     """The parameter in ``[lo, hi]`` where the free period-1 orbit's minimum gap is
     zero, to ``xtol`` relative; returns ``(value, state, normal velocity)``."""
     cache: dict[float, np.ndarray] = {}
 
     def gap_at(mu: float) -> float:
-        obstacle, free = _systems(path, overrides, param, mu)
+        obstacle, free = _systems(scenario, param, mu)
         y = _free_periodic_point(free, next(iter(cache.values()), None))
         cache[mu] = y
         return min_gap(obstacle, free, y).gap / float(obstacle.state_scale[0])
@@ -162,18 +162,18 @@ def locate(
         )
     span = abs(hi - lo)
     value = brentq(gap_at, lo, hi, xtol=xtol * max(span, abs(lo), abs(hi)), rtol=1e-15)
-    obstacle, free = _systems(path, overrides, param, value)
+    obstacle, free = _systems(scenario, param, value)
     y = _free_periodic_point(free, cache.get(value))
     m = min_gap(obstacle, free, y)
     return float(value), y, m.rate / obstacle.velocity_scale
 
 
 def sqrt_law(
-    path: str, overrides: list[str], param: str, value: float, y_graze: np.ndarray
+    scenario: Scenario, param: str, value: float, y_graze: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray, float]:
     """Deviation of the impacting map from the free map against penetration depth at the
     grazing point, and the fitted exponent (expected 0.5)."""
-    obstacle, free = _systems(path, overrides, param, value)
+    obstacle, free = _systems(scenario, param, value)
     imp_map = StroboscopicMap(obstacle, FLOQUET_RTOL)
     free_map = StroboscopicMap(free, FLOQUET_RTOL)
     scale = obstacle.state_scale
@@ -218,12 +218,23 @@ def brackets(values: np.ndarray, impacts: np.ndarray, status: np.ndarray) -> lis
     return out
 
 
-def grazing(
-    path: str, overrides: list[str], param: str, lo: float, hi: float, xtol: float = 1e-10
-) -> Grazing:
-    """Locate the grazing between ``lo`` and ``hi`` and fit the square-root law there."""
-    value, y, vn = locate(path, overrides, param, lo, hi, xtol)
-    depths, devs, slope = sqrt_law(path, overrides, param, value, y)
+def grazing(scenario: Scenario, param: str, lo: float, hi: float, xtol: float = 1e-10) -> Grazing:
+    """Locate the grazing of ``scenario`` (its overrides kept) between ``param = lo`` and
+    ``hi`` (the parameter's unit) and fit the square-root law there."""
+    value, y, vn = locate(scenario, param, lo, hi, xtol)
+    depths, devs, slope = sqrt_law(scenario, param, value, y)
     if not math.isfinite(slope):
         raise AnalysisError("the square-root law fit failed")
     return Grazing(param, value, y, vn, depths, devs, slope)
+
+
+def sweep_grazings(scenario: Scenario, result: Any, limit: int = 5) -> list[dict[str, Any]]:
+    """The grazings between neighbouring values of a sweep (``SweepResult``) of
+    ``scenario`` where its first direction starts or stops impacting, at most ``limit``,
+    as dicts (``Grazing.as_dict``)."""
+    first = next(iter(result.points))
+    found = []
+    for lo, hi in brackets(result.values, result.impacts[first], result.status[first])[:limit]:
+        lo, hi = min(lo, hi), max(lo, hi)
+        found.append(grazing(scenario, result.param.name, lo, hi).as_dict())
+    return found

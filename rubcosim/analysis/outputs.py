@@ -35,7 +35,9 @@ def write_sweep(
     """``sweep.npz``, ``sweep.csv`` (one row per stroboscopic point), ``report.json``
     (per value: n-m, distinct points, Floquet multipliers if asked; located grazings)
     and ``bifurcation.png`` (and ``grazing.png``, the square-root law, when grazings
-    were located)."""
+    were located).  ``grazings`` and ``multipliers`` default to the result's own."""
+    grazings = result.grazings if grazings is None else grazings
+    multipliers = result.multipliers if multipliers is None else multipliers
     dirs = list(result.points)
     np.savez_compressed(
         tmp / "sweep.npz",

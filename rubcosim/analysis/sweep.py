@@ -13,13 +13,13 @@ from __future__ import annotations
 
 import math
 import re
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
 from rubcosim.reference.assemble import System
-from rubcosim.scenario import Scenario, ScenarioError, load_scenario
+from rubcosim.scenario import Scenario, ScenarioError
 
 from .errors import AnalysisError
 from .maps import DEFAULT_MAX_EVENTS, DEFAULT_RTOL, StroboscopicMap
@@ -66,18 +66,29 @@ def parse_param(text: str) -> ParamRange:
     return ParamRange(name, start, stop, count)
 
 
-def sweep_systems(
-    path: str, overrides: list[str], param: ParamRange, values: np.ndarray
-) -> list[System]:
-    """The scenario's system at every value (each validated: a value out of the
-    parameter's range is an error naming it)."""
-    systems = []
-    for v in values:
-        sc = load_scenario(path, [*overrides, f"{param.name}={float(v)!r}"])
-        systems.append(sc.system)
+def sweep_values(param: ParamRange | str, values: Any = None) -> tuple[ParamRange, np.ndarray]:
+    """The swept parameter and its values: a :class:`ParamRange`, or a name
+    (``"rotor.speed"``) with ``values`` (the parameter's unit, e.g. rad/s)."""
+    if isinstance(param, ParamRange):
+        if values is not None:
+            raise AnalysisError(f"{param.name}: give a ParamRange or values, not both")
+        return param, param.values
+    if not isinstance(param, str) or param.count(".") != 1 or not all(param.split(".")):
+        raise ScenarioError(f"--param {param!r}: expected unit.param")
+    vals = np.asarray(values if values is not None else [], dtype=float).ravel()
+    if vals.size < 2 or not np.all(np.isfinite(vals)):
+        raise AnalysisError(f"{param}: the sweep needs at least two finite values")
+    return ParamRange(param, float(vals[0]), float(vals[-1]), int(vals.size)), vals
+
+
+def sweep_systems(scenario: Scenario, param: ParamRange | str, values: Any) -> list[System]:
+    """The scenario's system at every value, every override it was loaded with kept
+    (each validated: a value out of the parameter's range is an error naming it)."""
+    name = param.name if isinstance(param, ParamRange) else param
+    systems = [scenario.with_params({name: float(v)}).system for v in values]
     ips = {tuple(s.ip) for s in systems}
     if len(ips) != 1:
-        raise ScenarioError(f"--param {param.name}: changes the model's structure, not a value")
+        raise ScenarioError(f"--param {name}: changes the model's structure, not a value")
     return systems
 
 
@@ -135,6 +146,15 @@ class SweepResult:
     status: dict[str, np.ndarray]
     # impact section: forcing phase (rad) of each impact in the kept periods, NaN-padded
     impact_phase: dict[str, np.ndarray]
+    # per direction and value: Floquet multipliers (rubcosim.analysis.floquet.sweep_floquet)
+    multipliers: dict[str, list[dict[str, Any] | None]] = field(default_factory=dict)
+    # located grazings (rubcosim.analysis.grazing.sweep_grazings), as dicts
+    grazings: list[dict[str, Any]] = field(default_factory=list)
+
+    @property
+    def failed(self) -> dict[str, int]:
+        """Per direction: the number of values whose integration failed."""
+        return {d: int((s != 0).sum()) for d, s in self.status.items()}
 
     def classify(self, direction: str, tol: float = DEFAULT_TOL) -> list[dict[str, Any]]:
         """Per value: the n-m label and the number of distinct stroboscopic points."""
@@ -160,9 +180,9 @@ class SweepResult:
 
 def sweep(
     scenario: Scenario,
-    param: ParamRange,
+    param: ParamRange | str,
+    values: Any = None,
     *,
-    overrides: list[str] | None = None,
     periods: int = 100,
     discard: int = 200,
     direction: str = "up",
@@ -175,7 +195,10 @@ def sweep(
     chains: int = 1,
     progress: bool = False,
 ) -> SweepResult:
-    """Sweep ``param`` over its range from the scenario's initial state.
+    """Sweep ``param`` (a :class:`ParamRange`, or a name such as ``"rotor.speed"`` with
+    ``values`` in the parameter's unit) from the scenario's initial state, every
+    override the scenario was loaded with kept.  ``periods`` stroboscopic points are
+    kept per value after ``discard`` forcing periods of transient.
 
     ``chains > 1`` cuts each direction's range into that many parts, each continued
     from the scenario's initial state, so they run in parallel (a hysteresis
@@ -191,11 +214,8 @@ def sweep(
     ):
         if isinstance(v, bool) or not isinstance(v, int) or v < low:
             raise AnalysisError(f"{flag} = {v!r} must be an integer >= {low}")
-    if not scenario.source:
-        raise AnalysisError("the scenario must come from a file (load_scenario)")
-    overrides = list(overrides or [])
-    values = param.values
-    systems = sweep_systems(scenario.source, overrides, param, values)
+    param, values = sweep_values(param, values)
+    systems = sweep_systems(scenario, param, values)
     # refuses delay systems and a bad rtol up front; loads the kernel before workers fork
     StroboscopicMap(systems[0], rtol, max_events).orbit(keep=1)
     dirs = ["up", "down"] if direction == "both" else [direction]
@@ -219,9 +239,9 @@ def sweep(
     if checkpoint_dir is not None:
         spec = {
             "analysis": "sweep",
-            "scenario": scenario.source,
-            "overrides": overrides,
-            "param": [param.name, param.start, param.stop, param.count],
+            "scenario": scenario.source or scenario.name,
+            "overrides": {k: repr(v) for k, v in scenario.overrides.items()},
+            "param": [param.name, *values.tolist()],
             "periods": periods,
             "discard": discard,
             "rtol": rtol,

@@ -1,0 +1,210 @@
+"""The Python API, re-exported by ``rubcosim``::
+
+    import rubcosim as rc
+
+    sc = rc.load("jeffcott_rigid_stator", set={"rotor.speed": 400})
+    res = rc.simulate(sc, engine="fast")
+    res["rotor.x"], res.t, res.to_csv("out.csv")
+
+Every function takes a :class:`~rubcosim.scenario.Scenario`, or what :func:`load`
+takes (a bundled scenario's name, a TOML path, a dict of the TOML's structure).
+Values are in SI units (m, s, rad/s, kg, N/m) as in the scenario files.  A bad key or
+value raises :class:`~rubcosim.scenario.ScenarioError` (a ``ValueError``) naming it.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import replace
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+from .bundled import bundled_scenarios
+from .results import CheckResult, SimulationResult
+from .scenario import Scenario, ScenarioError, build_scenario, load_scenario, override_table
+
+if TYPE_CHECKING:
+    from .analysis.cellmap import Basins
+    from .analysis.sweep import ParamRange, SweepResult
+
+ScenarioLike = Scenario | str | Path | Mapping[str, Any]
+Params = Mapping[str, Any] | Iterable[str] | None
+
+
+def scenarios() -> dict[str, str]:
+    """The bundled scenarios: name -> description (``rubcosim scenarios``)."""
+    return bundled_scenarios()
+
+
+def load(source: ScenarioLike, set: Params = None) -> Scenario:  # noqa: A002
+    """A validated scenario from a bundled scenario's name (``"impact_duffing"``), a
+    TOML file's path, or a dict with the TOML's structure (``{"sim": {...},
+    "units": {...}}``), with the overrides ``set``: ``{"rotor.speed": 400,
+    "sim.t_end": 0.5}`` or ``["rotor.speed=400"]`` (as ``--set``).  The scenario keeps
+    them: ``scenario.with_params({...})`` adds more."""
+    params = set if isinstance(set, Mapping) else None
+    strings = [] if set is None or params is not None else [set] if isinstance(set, str) else set
+    if isinstance(source, Scenario):
+        table = override_table(strings, params)
+        return source.with_params(table) if table else source
+    if isinstance(source, Mapping):
+        return build_scenario(source, strings, params=params)
+    return load_scenario(source, strings, params=params)
+
+
+def _rtol(rtol: float | None, default: float) -> float:
+    rtol = default if rtol is None else rtol
+    if not 1e-14 <= rtol < 1.0:
+        raise ScenarioError(f"--rtol {rtol!r}: must be in [1e-14, 1)")
+    return rtol
+
+
+def _scenario(scenario: ScenarioLike, params: Params = None) -> Scenario:
+    if isinstance(scenario, Scenario) and params is None:
+        return scenario
+    return load(scenario, params)
+
+
+def simulate(
+    scenario: ScenarioLike,
+    engine: str | None = None,
+    set: Params = None,  # noqa: A002
+) -> SimulationResult:
+    """Integrate the scenario with a monolithic engine: ``"fast"`` (compiled DOP853 with
+    event location) or ``"accurate"`` (scipy); default its ``sim.engine``.  ``set``:
+    overrides as in :func:`load` (``rc.simulate("impact_duffing", set={"sim.t_end":
+    50.0})``, like FMPy's ``simulate_fmu(filename, start_values=...)``)."""
+    from rubcosim.reference.simulate import ENGINES
+
+    from .runner import run_scenario
+
+    if engine is not None and engine not in ENGINES:
+        raise ScenarioError(f"engine = {engine!r} is not one of {', '.join(ENGINES)}")
+    return SimulationResult(run_scenario(_scenario(scenario, set), engine=engine))
+
+
+def _settings(scenario: Scenario, backend: str | None) -> Any:
+    from rubcosim.orchestrator.settings import BACKENDS
+
+    if backend is not None and backend not in BACKENDS:
+        raise ScenarioError(f"backend = {backend!r} is not one of {', '.join(BACKENDS)}")
+    return scenario.cosim if backend is None else replace(scenario.cosim, backend=backend)
+
+
+def cosimulate(
+    scenario: ScenarioLike,
+    backend: str | None = None,
+    set: Params = None,  # noqa: A002
+) -> SimulationResult:
+    """Co-simulate the scenario's units with the orchestrator: ``backend="direct"``
+    (in-process units) or ``"fmu"`` (the FMUs through fmpy); default its
+    ``cosim.backend``.  Its other settings come from the ``[cosim]`` table (``set``
+    reaches them: ``{"cosim.rtol": 1e-6}``)."""
+    from .runner import run_cosim_scenario
+
+    sc = _scenario(scenario, set)
+    return SimulationResult(run_cosim_scenario(sc, _settings(sc, backend).backend))
+
+
+def check(
+    scenario: ScenarioLike,
+    backend: str | None = None,
+    set: Params = None,  # noqa: A002
+) -> CheckResult:
+    """Co-simulate the scenario and compare it with the ``accurate`` engine (``rubcosim
+    check``): per output the largest difference, impact counts and times (s)."""
+    from rubcosim.orchestrator.check import compare
+
+    sc = _scenario(scenario, set)
+    report, ref, co, rows = compare(sc, _settings(sc, backend))
+    return CheckResult(sc, report, ref, co, rows)
+
+
+def sweep(
+    scenario: ScenarioLike,
+    param: str | ParamRange,
+    values: Sequence[float] | Any = None,
+    *,
+    periods: int = 100,
+    discard: int = 200,
+    direction: str = "up",
+    rtol: float | None = None,
+    floquet: bool = False,
+    grazing: bool = False,
+    chains: int = 1,
+    workers: int | None = None,
+    scheduler: str | None = None,
+    checkpoint_dir: str | Path | None = None,
+    progress: bool = False,
+) -> SweepResult:
+    """Bifurcation diagram: ``param`` (``"rotor.speed"``) over ``values`` (its unit) by
+    continuation, ``discard`` forcing periods of transient then ``periods`` stroboscopic
+    points per value, sweeping ``"up"``, ``"down"`` or ``"both"``.  ``floquet``: the
+    multipliers of every periodic motion of period <= 8 (``result.multipliers``);
+    ``grazing``: locate where impacts start or stop and fit the square-root law there
+    (``result.grazings``).  ``workers`` local processes or a Dask ``scheduler``."""
+    from .analysis.maps import DEFAULT_RTOL
+    from .analysis.sweep import sweep as run_sweep
+
+    sc = _scenario(scenario)
+    result = run_sweep(
+        sc,
+        param,
+        values,
+        periods=periods,
+        discard=discard,
+        direction=direction,
+        rtol=_rtol(rtol, DEFAULT_RTOL),
+        workers=workers,
+        scheduler=scheduler,
+        checkpoint_dir=checkpoint_dir,
+        chains=chains,
+        progress=progress,
+    )
+    if floquet:
+        from .analysis.floquet import sweep_floquet
+
+        result.multipliers = sweep_floquet(sc, result)
+    if grazing:
+        from .analysis.grazing import sweep_grazings
+
+        result.grazings = sweep_grazings(sc, result)
+    return result
+
+
+def basins(
+    scenario: ScenarioLike,
+    grid: tuple[int, int] | str,
+    samples: int,
+    region: tuple[float, float, float, float] | str,
+    *,
+    seed: int = 0,
+    rtol: float | None = None,
+    workers: int | None = None,
+    scheduler: str | None = None,
+    checkpoint_dir: str | Path | None = None,
+    progress: bool = False,
+) -> Basins:
+    """Basins of attraction by generalized cell mapping on the stroboscopic section of a
+    single-DOF scenario: ``grid = (nx, nv)`` cells over ``region = (x0, x1, v0, v1)``
+    (the state's units, e.g. m and m/s), ``samples`` random points per cell from
+    ``seed``.  ``result.info`` holds the wall time (s)."""
+    import time
+
+    from .analysis.cellmap import CELL_MAP_RTOL, Grid, cell_mapping
+    from .analysis.maps import StroboscopicMap
+
+    sc = _scenario(scenario)
+    cells = Grid.parse(grid, region)
+    smap = StroboscopicMap(sc.system, _rtol(rtol, CELL_MAP_RTOL))
+    t0 = time.perf_counter()
+    result = cell_mapping(
+        smap, cells, samples, seed, workers, scheduler, checkpoint_dir, progress=progress
+    )
+    result.info = {
+        "parameters": sc.parameters,
+        "state_names": sc.system.state_names,
+        "rtol": smap.rtol,
+        "wall_time_s": time.perf_counter() - t0,
+    }
+    return result

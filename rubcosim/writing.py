@@ -1,0 +1,92 @@
+"""Writing results: an output directory filled elsewhere and moved into place when
+complete, a run's ``results.csv``, ``report.json`` and plots."""
+
+from __future__ import annotations
+
+import json
+import shutil
+import tempfile
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .runner import CosimRun, ScenarioRun, report
+from .scenario import ScenarioError
+
+
+class OutputPathError(ScenarioError):
+    """The output directory cannot be used (nothing has been written)."""
+
+
+def check_output_dir(out_dir: str | Path) -> Path:
+    """Refuse an output path that is a file, the working directory or one of its
+    parents, or a non-empty directory that is not an earlier result."""
+    out = Path(out_dir)
+    resolved = out.resolve()
+    if out.exists() and not out.is_dir():
+        raise OutputPathError(f"--out {out_dir}: exists and is not a directory")
+    cwd = Path.cwd().resolve()
+    if resolved == cwd or resolved in cwd.parents:
+        raise OutputPathError(f"--out {out_dir}: is the working directory or contains it")
+    if out.is_dir() and any(out.iterdir()) and not (out / "report.json").is_file():
+        # Only an earlier result (it has a report.json) is ever replaced.
+        raise OutputPathError(
+            f"--out {out_dir}: is a non-empty directory that holds no earlier result"
+        )
+    return out
+
+
+def write_directory(out_dir: str | Path, fill: Callable[[Path], Any]) -> Path:
+    """Let ``fill(tmp)`` write a fresh directory, then move it to ``out_dir``, replacing
+    an earlier result only once the new one is complete."""
+    out = check_output_dir(out_dir)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
+    try:
+        fill(tmp)
+        if out.exists():
+            old = Path(tempfile.mkdtemp(prefix=f".{out.name}.old.", dir=out.parent))
+            out.rename(old / out.name)
+            tmp.rename(out)
+            shutil.rmtree(old)
+        else:
+            tmp.rename(out)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+    return out
+
+
+def output_table(run: ScenarioRun | CosimRun) -> tuple[np.ndarray, list[str]]:
+    """The rows of ``results.csv``: the output grid up to the time reached (s), then one
+    column per recorded output; and the column names."""
+    names = run.scenario.outputs
+    keep = run.time <= run.result.t_reached + 1e-12
+    table = np.column_stack([run.time[keep]] + [run.series(n)[keep] for n in names])
+    return table, ["time", *names]
+
+
+def write_csv(run: ScenarioRun | CosimRun, path: str | Path) -> Path:
+    """Write ``results.csv`` (time, then every recorded output; 17 significant digits)."""
+    table, header = output_table(run)
+    np.savetxt(path, table, delimiter=",", header=",".join(header), comments="", fmt="%.17g")
+    return Path(path)
+
+
+def write_results(run: ScenarioRun | CosimRun, out_dir: str | Path) -> Path:
+    """Write ``results.csv``, ``report.json`` and the plots into a fresh directory, then
+    move it to ``out_dir``.
+
+    A previous result in ``out_dir`` is replaced only once the new one is
+    complete, so an interrupted run never leaves a half-written result.
+    """
+    from . import plots  # matplotlib only when writing
+
+    def fill(tmp: Path) -> None:
+        write_csv(run, tmp / "results.csv")
+        (tmp / "report.json").write_text(json.dumps(report(run), indent=2) + "\n", encoding="utf-8")
+        plots.scenario_plots(run, tmp)
+
+    return write_directory(out_dir, fill)
