@@ -167,11 +167,11 @@ class UnitType:
                 fail(f"parameter {p.name!r} is not one of {self.unit_class.__name__}'s")
         for s in self.states:
             if s.scale not in SCALE_KINDS:
-                fail(f"state {s.name!r} has no scale (scale = {s.scale!r}; one of "
-                     f"{', '.join(SCALE_KINDS)})")  # fmt: skip
+                kinds = ", ".join(SCALE_KINDS)
+                fail(f"state {s.name!r} has no scale (scale = {s.scale!r}; one of {kinds})")
             if s.unit != SCALE_KINDS[s.scale]:
-                fail(f"state {s.name!r} is in {s.unit!r} but a {s.scale} is in "
-                     f"{SCALE_KINDS[s.scale]!r}")  # fmt: skip
+                expected = SCALE_KINDS[s.scale]
+                fail(f"state {s.name!r} is in {s.unit!r} but a {s.scale} is in {expected!r}")
         for n in self.needs:
             for name in filter(None, (n.param, n.reduced_with)):
                 if name not in class_params:

@@ -321,7 +321,7 @@ RIGID_STATOR = UnitType(
         slip_speed,
         constraint_normal_force,
         sticking_friction,
-    ),  # fmt: skip
+    ),
 )
 
 ELASTIC_STATOR = UnitType(
