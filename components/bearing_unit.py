@@ -12,6 +12,7 @@ from .bearing import (
     oilfilm_force,
     oilfilm_sigma,
 )
+from .declaration import FmuIdentity, Need, UnitType, Wire
 from .parameters import positive
 from .unit import Unit, planar_motion, real_signal
 
@@ -71,3 +72,24 @@ class LinearBearingUnit(_Bearing):
             u["x"], u["y"], u["vx"], u["vy"], q["stiffness"], q["damping"]
         )
         return {"fx": fx, "fy": fy}
+
+
+# The bearing holds the journal of a two-mass rotor.
+JOURNAL_WIRING = tuple(Wire(s, (f"rotor.journal_{s}",)) for s in ("x", "y", "vx", "vy"))
+
+OILFILM_BEARING = UnitType(
+    OilFilmBearingUnit,
+    OILFILM_PARAMS,
+    FmuIdentity("RubcosimOilFilmBearing"),
+    needs=(Need("speed", "rotor.speed"),),
+    wiring=JOURNAL_WIRING,
+    kernels=(oilfilm_force,),
+)
+
+LINEAR_BEARING = UnitType(
+    LinearBearingUnit,
+    LINEAR_PARAMS,
+    FmuIdentity("RubcosimLinearBearing"),
+    wiring=JOURNAL_WIRING,
+    kernels=(linear_bearing_force,),
+)

@@ -14,6 +14,7 @@ from typing import Any
 import numpy as np
 
 from .controller import CONTROLLER_PARAMS, base_delay, delay_at, feedback_force
+from .declaration import FmuIdentity, Need, UnitType, Wire
 from .parameters import nonnegative
 from .unit import Unit, planar_motion, real_signal
 
@@ -116,3 +117,13 @@ class DelayedFeedbackUnit(Unit):
             "uy": feedback_force(gain, zy, dy),
             "current_delay": tau,
         }
+
+
+DELAYED_FEEDBACK = UnitType(
+    DelayedFeedbackUnit,
+    CONTROLLER_PARAMS,
+    FmuIdentity("RubcosimDelayedFeedbackController"),
+    needs=(Need("speed", "rotor.speed"),),
+    wiring=tuple(Wire(s, (f"rotor.{s}",)) for s in ("x", "y", "vx", "vy")),
+    kernels=(delay_at, feedback_force),
+)

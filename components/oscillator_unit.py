@@ -15,6 +15,7 @@ from typing import Any
 
 import numpy as np
 
+from .declaration import FmuIdentity, State, UnitType
 from .oscillator import (
     OSCILLATOR_PARAMS,
     check_oscillator,
@@ -146,3 +147,12 @@ class ImpactOscillatorUnit(Unit):
 
 def _at_rest(t: float, y: np.ndarray) -> np.ndarray:
     return np.zeros(2)
+
+
+IMPACT_OSCILLATOR = UnitType(
+    ImpactOscillatorUnit,
+    OSCILLATOR_PARAMS,
+    FmuIdentity("RubcosimImpactOscillator"),
+    states=(State("x", "m", "length"), State("v", "m/s", "velocity")),
+    kernels=(free_acceleration, elastic_stop_force, impact_velocity),
+)

@@ -11,10 +11,13 @@ velocity by the reset values and reports the counter it has applied in
 
 from __future__ import annotations
 
+import math
+from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
 
+from .declaration import FmuIdentity, Provided, UnitType, Wire, planar_states
 from .rotor import (
     JEFFCOTT_PARAMS,
     TWO_MASS_PARAMS,
@@ -23,7 +26,7 @@ from .rotor import (
 )
 from .stepping import step_ode
 from .unit import INTEGRATOR_PARAMS, Unit, integer_signal, planar_motion, real_signal
-from .unit_odes import JEFFCOTT, JEFFCOTT_P, TWO_MASS, TWO_MASS_P
+from .unit_odes import JEFFCOTT, JEFFCOTT_P, TWO_MASS, TWO_MASS_P, unit_rhs
 
 _DISC_INPUTS = (
     real_signal("fx", "N", "external force on the disc along x (contact + control)"),
@@ -151,3 +154,50 @@ class TwoMassRotorUnit(_Rotor):
         y = self.state["y"]
         out.update(journal_x=y[4], journal_y=y[5], journal_vx=y[6], journal_vy=y[7])
         return out
+
+
+def constraint_rate(q: Mapping[str, Any]) -> float:
+    """Rate (rad/s) at which a constraint on the disc pulls drift back: the faster of the
+    spin speed and the shaft's natural frequency sqrt(k / m), the rotor's own time scale."""
+    return max(q["speed"], math.sqrt(q["stiffness"] / q["mass"]))
+
+
+# What a stator, bearing or controller takes from the rotor (see their ``needs``).
+ROTOR_PROVIDES = (
+    Provided("speed", "rad/s", "spin speed w", lambda q: q["speed"]),
+    Provided("disc_radius", "m", "radius Rd of the rubbing surface", lambda q: q["disc_radius"]),
+    Provided("disc_mass", "kg", "disc mass m", lambda q: q["mass"]),
+    Provided("constraint_rate", "rad/s", "Baumgarte rate of a contact constraint", constraint_rate),
+)
+
+# The disc's forces: contact (stator) plus control (controller), in this order.
+DISC_WIRING = (
+    Wire("fx", ("stator.fx", "controller.ux")),
+    Wire("fy", ("stator.fy", "controller.uy")),
+)
+
+JEFFCOTT_ROTOR = UnitType(
+    JeffcottRotorUnit,
+    JEFFCOTT_PARAMS,
+    FmuIdentity("RubcosimJeffcottRotor"),
+    states=planar_states(),
+    provides=ROTOR_PROVIDES,
+    wiring=DISC_WIRING,
+    kernels=(jeffcott_force, unit_rhs),
+    mass_scale="mass",
+)
+
+TWO_MASS_ROTOR = UnitType(
+    TwoMassRotorUnit,
+    TWO_MASS_PARAMS,
+    FmuIdentity("RubcosimTwoMassRotor"),
+    states=(*planar_states(), *planar_states("journal_")),
+    provides=ROTOR_PROVIDES,
+    wiring=(
+        *DISC_WIRING,
+        Wire("journal_fx", ("bearing.fx",)),
+        Wire("journal_fy", ("bearing.fy",)),
+    ),
+    kernels=(two_mass_disc_force, unit_rhs),
+    mass_scale="mass",
+)

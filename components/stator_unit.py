@@ -19,6 +19,7 @@ from typing import Any
 
 import numpy as np
 
+from .declaration import FmuIdentity, Need, UnitType, Wire, planar_states
 from .parameters import ParameterError, nonnegative
 from .stator import (
     CASING_PARAMS,
@@ -33,13 +34,14 @@ from .stator import (
     contact_geometry,
     damping_from_restitution,
     penalty_contact_force,
+    penalty_normal_force,
     rigid_impact,
     slip_speed,
     sticking_friction,
 )
 from .stepping import step_ode
 from .unit import INTEGRATOR_PARAMS, Unit, integer_signal, planar_motion, real_signal
-from .unit_odes import CASING, CASING_P
+from .unit_odes import CASING, CASING_P, unit_rhs
 
 ROTOR_PARAMS = (
     nonnegative("speed", 0.0, "rad/s", "spin speed w of the rotor this stator meets"),
@@ -292,3 +294,52 @@ class CasingStatorUnit(_Penalty):
             "casing_vx": c[2],
             "casing_vy": c[3],
         }
+
+
+# What every stator takes from the rotor it meets, and the disc state it reads.
+ROTOR_NEEDS = (Need("speed", "rotor.speed"), Need("disc_radius", "rotor.disc_radius"))
+DISC_WIRING = tuple(Wire(s, (f"rotor.{s}",)) for s in ("x", "y", "vx", "vy"))
+
+RIGID_STATOR = UnitType(
+    RigidStatorUnit,
+    RIGID_PARAMS,
+    FmuIdentity("RubcosimRigidStator"),
+    needs=(
+        *ROTOR_NEEDS,
+        Need("disc_mass", "rotor.disc_mass"),
+        Need("constraint_rate", "rotor.constraint_rate"),
+    ),
+    # every disc force but the stator's own: the rotor's, then the controller's
+    wiring=(
+        *DISC_WIRING,
+        Wire("other_fx", ("rotor.force_x", "controller.ux")),
+        Wire("other_fy", ("rotor.force_y", "controller.uy")),
+    ),
+    kernels=(
+        contact_geometry,
+        rigid_impact,
+        slip_speed,
+        constraint_normal_force,
+        sticking_friction,
+    ),
+)
+
+ELASTIC_STATOR = UnitType(
+    ElasticStatorUnit,
+    ELASTIC_PARAMS,
+    FmuIdentity("RubcosimElasticStator"),
+    needs=(*ROTOR_NEEDS, Need("impact_mass", "rotor.disc_mass")),
+    wiring=DISC_WIRING,
+    kernels=(contact_geometry, penalty_contact_force, penalty_normal_force),
+)
+
+CASING_STATOR = UnitType(
+    CasingStatorUnit,
+    CASING_PARAMS,
+    FmuIdentity("RubcosimCasingStator"),
+    states=planar_states("casing_"),
+    # the disc meets the casing: the impact sees their reduced mass
+    needs=(*ROTOR_NEEDS, Need("impact_mass", "rotor.disc_mass", reduced_with="mass")),
+    wiring=DISC_WIRING,
+    kernels=(contact_geometry, penalty_contact_force, penalty_normal_force, unit_rhs),
+)

@@ -1,40 +1,30 @@
-"""Every unit class, by role and type (the same keys as :data:`.catalog.UNIT_TYPES`)."""
+"""Every unit class, by role and type (the same keys as :data:`.catalog.UNIT_TYPES`), as
+declared in :data:`.registry.REGISTRY`."""
 
 from __future__ import annotations
 
 from typing import Any
 
-from .bearing_unit import LinearBearingUnit, OilFilmBearingUnit
-from .controller_unit import DelayedFeedbackUnit
-from .oscillator_unit import ImpactOscillatorUnit
+from .declaration import UnitType
 from .parameters import ParameterError
-from .rotor_unit import JeffcottRotorUnit, TwoMassRotorUnit
-from .stator_unit import CasingStatorUnit, ElasticStatorUnit, RigidStatorUnit
+from .registry import REGISTRY
 from .unit import Unit
 
-UNIT_CLASSES: dict[tuple[str, str], type[Unit]] = {
-    (cls.role, cls.type_name): cls
-    for cls in (
-        JeffcottRotorUnit,
-        TwoMassRotorUnit,
-        RigidStatorUnit,
-        ElasticStatorUnit,
-        CasingStatorUnit,
-        OilFilmBearingUnit,
-        LinearBearingUnit,
-        DelayedFeedbackUnit,
-        ImpactOscillatorUnit,
-    )
-}
+UNIT_CLASSES: dict[tuple[str, str], type[Unit]] = REGISTRY.classes()
+
+
+def unit_type(role: str, type_name: str, name: str | None = None) -> UnitType:
+    """The declaration of ``role``/``type_name``; an unknown one is a ParameterError."""
+    declared = REGISTRY.get(role, type_name)
+    if declared is None:
+        known = sorted(t for r, t in UNIT_CLASSES if r == role)
+        raise ParameterError(f"{name or role}.type = {type_name!r} is not one of {known}")
+    return declared
 
 
 def unit_class(role: str, type_name: str, name: str | None = None) -> type[Unit]:
     """The class for ``role``/``type_name``; an unknown one is a ParameterError."""
-    cls = UNIT_CLASSES.get((role, type_name))
-    if cls is None:
-        known = sorted(t for r, t in UNIT_CLASSES if r == role)
-        raise ParameterError(f"{name or role}.type = {type_name!r} is not one of {known}")
-    return cls
+    return unit_type(role, type_name, name).unit_class
 
 
 def make_unit(role: str, type_name: str, name: str | None = None, **params: Any) -> Unit:

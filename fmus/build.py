@@ -28,8 +28,8 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from rubcosim import __version__, components
+from rubcosim.components.registry import REGISTRY
 from rubcosim.components.unit import Unit
-from rubcosim.components.units import UNIT_CLASSES
 
 from .native import install_loader
 
@@ -37,17 +37,8 @@ COMPONENTS_DIR = Path(components.__file__).resolve().parent
 ADAPTER = Path(__file__).resolve().parent / "fmi_slave.py"
 DEFAULT_OUT = Path("build") / "fmus"
 
-MODEL_IDENTIFIERS: dict[tuple[str, str], str] = {
-    ("rotor", "jeffcott"): "RubcosimJeffcottRotor",
-    ("rotor", "two_mass"): "RubcosimTwoMassRotor",
-    ("stator", "rigid"): "RubcosimRigidStator",
-    ("stator", "elastic"): "RubcosimElasticStator",
-    ("stator", "casing"): "RubcosimCasingStator",
-    ("bearing", "oilfilm"): "RubcosimOilFilmBearing",
-    ("bearing", "linear"): "RubcosimLinearBearing",
-    ("controller", "delayed_feedback"): "RubcosimDelayedFeedbackController",
-    ("oscillator", "impact_oscillator"): "RubcosimImpactOscillator",
-}
+# (role, type) -> FMI model identifier, as each unit type declares it
+MODEL_IDENTIFIERS: dict[tuple[str, str], str] = {t.key: t.fmu.identifier for t in REGISTRY}
 
 SLAVE_TEMPLATE = '''"""{summary}.
 
@@ -89,8 +80,8 @@ class FmuSpec:
 
 
 def fmu_specs() -> list[FmuSpec]:
-    """Every FMU this package builds, in a stable order."""
-    return [FmuSpec(MODEL_IDENTIFIERS[key], cls) for key, cls in UNIT_CLASSES.items()]
+    """Every FMU this package builds, one per declared unit type, in the registry's order."""
+    return [FmuSpec(t.fmu.identifier, t.unit_class) for t in REGISTRY]
 
 
 def bundled_sources() -> list[Path]:

@@ -7,8 +7,9 @@ master does not know the difference.
 
 Parameters a unit needs from another (the stator's spin speed, disc radius
 and disc mass, the bearing's and controller's speed) are taken from the
-rotor here, exactly as the monolithic assembler does, so that the
-co-simulation and the reference simulate the same model.
+rotor here as each unit type declares them (its ``needs``), with the values
+the monolithic assembler uses, so that the co-simulation and the reference
+simulate the same model.
 """
 
 from __future__ import annotations
@@ -22,8 +23,9 @@ from typing import Any
 
 import numpy as np
 
-from rubcosim.components.units import unit_class
-from rubcosim.reference import system as S
+from rubcosim.components.declaration import SCALE_KINDS
+from rubcosim.components.registry import REGISTRY
+from rubcosim.components.units import unit_class, unit_type
 
 from .connections import Connection, apply_table, check_connections, default_connections
 from .master import CosimError, CosimResult, Master
@@ -35,33 +37,22 @@ DIVERGED = 100.0  # displacements past this many length scales: the run has dive
 
 
 def unit_parameters(scenario: Any, settings: CosimSettings) -> dict[str, dict[str, Any]]:
-    """Every unit's co-simulation parameters: its scenario parameters plus what it
-    needs from the rotor, and the units' own integrator tolerances."""
+    """Every unit's co-simulation parameters: its scenario parameters, what it needs from
+    its neighbours (as its type declares: :meth:`Registry.neighbour_params`), and, where
+    its class has them, the units' own integrator tolerances and the chattering tolerance."""
     units = scenario.system.units
+    types = {role: u.type for role, u in units.items()}
     params = {role: dict(u.params) for role, u in units.items()}
-    tolerances = {"rtol": settings.unit_rtol, "atol": settings.unit_atol}
-    if "oscillator" in params:
-        params["oscillator"].update(tolerances)
-        params["oscillator"]["chatter_tol"] = scenario.sim["chatter_tol"]
-        return params
-    rotor = params["rotor"]
-    rotor.update(tolerances)
-    w = rotor["speed"]
-    if "stator" in params:
-        stator, kind = params["stator"], units["stator"].type
-        stator.update(speed=w, disc_radius=rotor["disc_radius"])
-        if kind == "rigid":
-            stator.update(
-                disc_mass=rotor["mass"], constraint_rate=float(scenario.system.p[S.P_OMEGA_B])
-            )
-        elif kind == "elastic":
-            stator["impact_mass"] = rotor["mass"]
-        else:
-            m, ms = rotor["mass"], stator["mass"]
-            stator.update(impact_mass=m * ms / (m + ms), **tolerances)
-    for role in ("bearing", "controller"):
-        if role in params and (role == "controller" or units[role].type == "oilfilm"):
-            params[role]["speed"] = w
+    for role, values in REGISTRY.neighbour_params(types, params).items():
+        params[role].update(values)
+    from_settings = {
+        "rtol": settings.unit_rtol,
+        "atol": settings.unit_atol,
+        "chatter_tol": scenario.sim["chatter_tol"],
+    }
+    for role, type_name in types.items():
+        declared = {p.name for p in unit_class(role, type_name).params_spec}
+        params[role].update({k: v for k, v in from_settings.items() if k in declared})
     return params
 
 
@@ -86,13 +77,23 @@ def scenario_connections(scenario: Any) -> list[Connection]:
 
 def _measure_scales(scenario: Any) -> dict[str, float]:
     """The system's scale for each unit of measure (as the reference engines scale their
-    absolute tolerance): the length scale for m, the velocity scale for m/s, and mass
-    times the velocity scale times the frequency for N."""
+    absolute tolerance): a declared state's kind gives its unit of measure its scale (the
+    length scale for m, the velocity scale for m/s), and the declared mass scale times the
+    velocity scale times the frequency sizes N."""
     system = scenario.system
-    length = float(system.state_scale[0])
-    vscale = float(system.velocity_scale)
-    mass = float(system.units["rotor"].params["mass"]) if "rotor" in system.units else 1.0
-    return {"m": length, "m/s": vscale, "N": mass * vscale * vscale / length}
+    types = {role: u.type for role, u in system.units.items()}
+    kinds = REGISTRY.state_scales(types)
+    by_kind: dict[str, float] = {}
+    for name, scale in zip(system.state_names, system.state_scale, strict=True):
+        by_kind.setdefault(kinds[name], float(scale))
+    length, vscale = by_kind["length"], by_kind["velocity"]
+    params = {role: u.params for role, u in system.units.items()}
+    mass = REGISTRY.mass_scale(types, params)
+    return {
+        SCALE_KINDS["length"]: length,
+        SCALE_KINDS["velocity"]: vscale,
+        "N": mass * vscale * vscale / length,
+    }
 
 
 def _input_measures(scenario: Any, connections: list[Connection]) -> dict[str, str]:
@@ -147,14 +148,16 @@ def default_fmu_dir() -> Path:
 
 def fmu_paths(roles_types: Mapping[str, str], fmu_dir: Path | None) -> dict[str, Path]:
     """The FMU file of every unit, built into ``fmu_dir`` first when missing."""
-    from rubcosim.fmus.build import MODEL_IDENTIFIERS, build_fmus
+    from rubcosim.fmus.build import build_fmus
 
     directory = Path(fmu_dir) if fmu_dir is not None else default_fmu_dir()
-    ids = {role: MODEL_IDENTIFIERS[(role, t)] for role, t in roles_types.items()}
-    missing = sorted({i for i in ids.values() if not (directory / f"{i}.fmu").is_file()})
+    fmus = {role: unit_type(role, t).fmu for role, t in roles_types.items()}
+    missing = sorted(
+        {f.identifier for f in fmus.values() if not (directory / f.file_name).is_file()}
+    )
     if missing:
         build_fmus(directory, only=missing)
-    return {role: directory / f"{i}.fmu" for role, i in ids.items()}
+    return {role: directory / f.file_name for role, f in fmus.items()}
 
 
 @contextlib.contextmanager

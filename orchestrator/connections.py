@@ -2,10 +2,10 @@
 
 Names are ``unit.signal``.  A scenario's ``[connections]`` table maps an input
 to a list of outputs (or one output); an empty list disconnects it.  Without
-a table, units are connected by their roles the way the monolithic
-reference couples them: the disc state goes to the stator and the
-controller, contact and control forces come back to the disc, the journal
-state goes to the bearing and its force comes back.
+a table, units are connected as their types declare (each unit type's
+``wiring``), the way the monolithic reference couples them: the disc state
+goes to the stator and the controller, contact and control forces come back
+to the disc, the journal state goes to the bearing and its force comes back.
 """
 
 from __future__ import annotations
@@ -13,6 +13,8 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from functools import cached_property
+
+from rubcosim.components.registry import REGISTRY
 
 
 class CouplingError(ValueError):
@@ -41,36 +43,10 @@ class Connection:
         return tuple(tuple(s.split(".", 1)) for s in self.sources)  # type: ignore[misc]
 
 
-_DISC = ("x", "y", "vx", "vy")
-
-
 def default_connections(types: Mapping[str, str]) -> list[Connection]:
-    """Role-based connections for the units present (``role -> type``)."""
-    links: dict[str, list[str]] = {}
-    if "rotor" not in types:
-        return []
-    stator, controller, bearing = (types.get(r) for r in ("stator", "controller", "bearing"))
-    for role in ("stator", "controller"):
-        if types.get(role):
-            for s in _DISC:
-                links[f"{role}.{s}"] = [f"rotor.{s}"]
-    for axis, u in (("x", "ux"), ("y", "uy")):
-        force = []
-        if stator:
-            force.append(f"stator.f{axis}")
-        if controller:
-            force.append(f"controller.{u}")
-        if force:
-            links[f"rotor.f{axis}"] = force
-        if stator == "rigid":
-            others = [f"rotor.force_{axis}"] + ([f"controller.{u}"] if controller else [])
-            links[f"stator.other_f{axis}"] = others
-        if bearing:
-            links[f"rotor.journal_f{axis}"] = [f"bearing.f{axis}"]
-    if bearing:
-        for s in _DISC:
-            links[f"bearing.{s}"] = [f"rotor.journal_{s}"]
-    return [Connection(t, tuple(s)) for t, s in links.items()]
+    """The declared default connections of the units present (``role -> type``): each
+    unit type's wiring in :mod:`rubcosim.components.registry`."""
+    return [Connection(t, s) for t, s in REGISTRY.default_wiring(types)]
 
 
 def _split(name: str, where: str) -> tuple[str, str]:

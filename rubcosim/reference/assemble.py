@@ -14,6 +14,7 @@ from rubcosim.components.catalog import UNIT_TYPES
 from rubcosim.components.controller import base_delay
 from rubcosim.components.oscillator import STOP_KINDS, check_oscillator
 from rubcosim.components.parameters import ParameterError, resolve
+from rubcosim.components.registry import REGISTRY
 from rubcosim.components.stator import damping_from_restitution
 
 from . import system as S
@@ -60,8 +61,13 @@ class System:
         return float(self.p[S.P_TAU0] - self.p[S.P_EPS]) if self.has_delay else math.inf
 
 
-def _is_velocity(state_name: str) -> bool:
-    return state_name.split(".")[1].split("_")[-1].startswith("v")
+def _state_scale(
+    units: Mapping[str, Unit], names: list[str], length: float, vscale: float
+) -> np.ndarray:
+    """Each state's scale (m or m/s) from the scale kind its unit type declares."""
+    kinds = REGISTRY.state_scales({role: u.type for role, u in units.items()})
+    by_kind = {"length": length, "velocity": vscale}
+    return np.array([by_kind[kinds[name]] for name in names])
 
 
 def make_unit(role: str, type_: str, given: Mapping[str, Any]) -> Unit:
@@ -119,7 +125,9 @@ def _oscillator_system(u: Unit, chatter_tol: float) -> System:
         y0=np.array([q["x0"], q["v0"]]),
         mode0=S.MODE_FREE,
         state_names=["oscillator.x", "oscillator.v"],
-        state_scale=np.array([length, vscale]),
+        state_scale=_state_scale(
+            {"oscillator": u}, ["oscillator.x", "oscillator.v"], length, vscale
+        ),
         output_names=S.output_names(ip),
         forcing_period=2.0 * math.pi / q["forcing_frequency"],
         velocity_scale=vscale,
@@ -237,7 +245,7 @@ def _rotor_system(units: Mapping[str, Unit], chatter_tol: float) -> System:
     p[S.P_OMEGA_B] = omega
     n = len(y0)
     ip[S.IP_NSTATE] = n
-    scale = np.array([vscale if _is_velocity(nm) else length for nm in names])
+    scale = _state_scale(units, names, length, vscale)
     return System(
         family=S.FAMILY_ROTOR,
         p=p,
