@@ -22,6 +22,7 @@ from typing import Any
 
 import numpy as np
 
+from rubcosim.components.stator import reduced_mass
 from rubcosim.components.units import unit_class
 from rubcosim.reference import system as S
 
@@ -58,7 +59,7 @@ def unit_parameters(scenario: Any, settings: CosimSettings) -> dict[str, dict[st
             stator["impact_mass"] = rotor["mass"]
         else:
             m, ms = rotor["mass"], stator["mass"]
-            stator.update(impact_mass=m * ms / (m + ms), **tolerances)
+            stator.update(impact_mass=reduced_mass(m, ms), **tolerances)
     for role in ("bearing", "controller"):
         if role in params and (role == "controller" or units[role].type == "oilfilm"):
             params[role]["speed"] = w
