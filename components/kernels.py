@@ -8,11 +8,13 @@
 
 from __future__ import annotations
 
+import numpy as np
+
 from .jit import njit
 
 
 @njit
-def planar_newton(y, i: int, fx: float, fy: float, m: float, dy) -> None:
+def planar_newton(y: np.ndarray, i: int, fx: float, fy: float, m: float, dy: np.ndarray) -> None:
     """Write ``d/dt (x, y, vx, vy) = (vx, vy, fx/m, fy/m)`` for the body whose state
     (m, m/s) starts at index ``i`` of ``y`` into the same slots of ``dy``.
 

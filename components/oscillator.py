@@ -94,7 +94,9 @@ def pressing(side: int, acc_at_rest: float) -> float:
 
 
 @njit
-def stop_impact(v: float, restitution: float, v_chat: float, side: int, acc_at_rest: float):
+def stop_impact(
+    v: float, restitution: float, v_chat: float, side: int, acc_at_rest: float
+) -> tuple[float, bool]:
     """Impact of the mass on the rigid barrier on ``side`` arriving at speed v (m/s).
 
     Newton's law ``v+ = -R v-``; a rebound slower than ``v_chat`` (m/s) ends a

@@ -129,7 +129,7 @@ def penalty_normal(dist: float, vn: float, d: float, kc: float, cc: float) -> fl
 @njit
 def penalty_normal_force(
     rx: float, ry: float, rvx: float, rvy: float, d: float, kc: float, cc: float
-):
+) -> tuple[float, float, float, float]:
     """:func:`penalty_normal` for the relative position r (m) and velocity rv (m/s) of
     the disc; returns ``(Fn, dist, nx, ny)``."""
     dist, nx, ny = contact_geometry(rx, ry)

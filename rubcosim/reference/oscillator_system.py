@@ -53,7 +53,9 @@ def resting_acceleration(t: float, side: int, p: np.ndarray) -> float:
 
 
 @nb.njit(cache=True, inline="always")
-def oscillator_rhs(t, y, mode, p, ip, dy):
+def oscillator_rhs(
+    t: float, y: np.ndarray, mode: int, p: np.ndarray, ip: np.ndarray, dy: np.ndarray
+) -> None:
     """dy/dt = (v, a); at rest while stuck on a barrier."""
     if mode != MODE_FREE:
         dy[0] = 0.0
@@ -66,7 +68,16 @@ def oscillator_rhs(t, y, mode, p, ip, dy):
 
 
 @nb.njit(cache=True, inline="always")
-def oscillator_events(t, y, mode, p, ip, g, dirs, rates):
+def oscillator_events(
+    t: float,
+    y: np.ndarray,
+    mode: int,
+    p: np.ndarray,
+    ip: np.ndarray,
+    g: np.ndarray,
+    dirs: np.ndarray,
+    rates: np.ndarray,
+) -> None:
     """Slot 0: the barrier +D (impact, or a breakpoint of an elastic stop) or, stuck
     there, its release; slot 2: the same for -D; slots 1 and 3: their rates."""
     stop = ip[IP_STOP]
@@ -94,7 +105,9 @@ def oscillator_events(t, y, mode, p, ip, g, dirs, rates):
 
 
 @nb.njit(cache=True)
-def oscillator_apply(k, t, y, mode, p, ip):
+def oscillator_apply(
+    k: int, t: float, y: np.ndarray, mode: int, p: np.ndarray, ip: np.ndarray
+) -> tuple[int, int]:
     """Event of slot ``k``: crossing an elastic stop's edge, release from a barrier,
     or an impact (which may end chattering and stick).  Returns ``(mode, kind)``."""
     stop = ip[IP_STOP]
@@ -112,7 +125,9 @@ def oscillator_apply(k, t, y, mode, p, ip):
 
 
 @nb.njit(cache=True)
-def oscillator_outputs(y, mode, p, ip, out):
+def oscillator_outputs(
+    y: np.ndarray, mode: int, p: np.ndarray, ip: np.ndarray, out: np.ndarray
+) -> None:
     """x, v and contact: 0 free, 1 inside an elastic stop, 2 stuck on a barrier."""
     out[0] = y[0]
     out[1] = y[1]
