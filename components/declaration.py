@@ -98,12 +98,6 @@ class FmuIdentity:
         return f"{self.identifier}.fmu"
 
 
-def reduced_mass(m1: float, m2: float) -> float:
-    """Reduced mass ``m1 m2 / (m1 + m2)`` of two bodies, kg (what an impact between them
-    sees)."""
-    return m1 * m2 / (m1 + m2)
-
-
 @dataclass(frozen=True)
 class UnitType:
     """One unit type.  Role, type name, summary, inputs and outputs are those of its

@@ -76,6 +76,40 @@ def impact_velocity(v: float, restitution: float) -> float:
     return -restitution * v
 
 
+@njit
+def barrier_gap(x: float, barrier: float, side: int) -> float:
+    """Distance (m) of the mass at x from the barrier on ``side`` (+1: the barrier at
+    +D, -1: at -D), positive while clear: ``D - x`` or ``x + D``."""
+    if side > 0:
+        return barrier - x
+    return x + barrier
+
+
+@njit
+def pressing(side: int, acc_at_rest: float) -> float:
+    """How hard the mass resting on the barrier on ``side`` is pushed into it: its free
+    acceleration there (m/s^2, with zero velocity) along the outward side.  The
+    mass stays stuck while this is > 0 and is released when it falls through 0."""
+    return side * acc_at_rest
+
+
+@njit
+def stop_impact(
+    v: float, restitution: float, v_chat: float, side: int, acc_at_rest: float
+) -> tuple[float, bool]:
+    """Impact of the mass on the rigid barrier on ``side`` arriving at speed v (m/s).
+
+    Newton's law ``v+ = -R v-``; a rebound slower than ``v_chat`` (m/s) ends a
+    chattering sequence: the mass comes to rest on the barrier and sticks if
+    it is pushed into it (:func:`pressing` of ``acc_at_rest``, the free
+    acceleration at rest on the barrier now, m/s^2).  Returns ``(v+, stuck)``.
+    """
+    v_plus = impact_velocity(v, restitution)
+    if abs(v_plus) >= v_chat:
+        return v_plus, False
+    return 0.0, pressing(side, acc_at_rest) > 0.0
+
+
 def check_oscillator(params: dict, unit: str = "oscillator") -> None:
     """Checks across parameters: a two-sided stop needs D > 0, an elastic stop a
     stiffness, and the mass must not start beyond a rigid barrier."""

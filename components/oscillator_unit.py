@@ -18,10 +18,12 @@ import numpy as np
 from .declaration import FmuIdentity, State, UnitType
 from .oscillator import (
     OSCILLATOR_PARAMS,
+    barrier_gap,
     check_oscillator,
     elastic_stop_force,
     free_acceleration,
-    impact_velocity,
+    pressing,
+    stop_impact,
 )
 from .oscillator import STOP_KINDS as _STOPS
 from .parameters import positive
@@ -84,15 +86,15 @@ class ImpactOscillatorUnit(Unit):
 
     def _free_events(self):
         D = self.params["barrier"]
-        events = [event(lambda t, y: D - y[0], -1.0)]
+        events = [event(lambda t, y: barrier_gap(y[0], D, 1), -1.0)]
         if self.two_sided:
-            events.append(event(lambda t, y: y[0] + D, -1.0))
+            events.append(event(lambda t, y: barrier_gap(y[0], D, -1), -1.0))
         return events
 
     def _release_event(self, side: int):
         D = self.params["barrier"] * side
-        # stuck while side * acceleration > 0 (pushed into the barrier)
-        return [event(lambda t, y: side * self._free_acc(t, D, 0.0), -1.0)]
+        # stuck while pushed into the barrier
+        return [event(lambda t, y: pressing(side, self._free_acc(t, D, 0.0)), -1.0)]
 
     def _advance(self, t: float, h: float) -> None:
         q = self.params
@@ -122,12 +124,12 @@ class ImpactOscillatorUnit(Unit):
         D = self.params["barrier"] * side
         y = st["y"]
         y[0] = D  # the locator leaves the mass within round-off of the barrier
-        y[1] = impact_velocity(y[1], self.params["restitution"])
+        y[1], stuck = stop_impact(
+            y[1], self.params["restitution"], self.v_chatter, side, self._free_acc(t, D, 0.0)
+        )
         st["impacts"] += 1
-        if abs(y[1]) < self.v_chatter:
-            y[1] = 0.0
-            if side * self._free_acc(t, D, 0.0) > 0.0:
-                st["mode"] = STUCK_UPPER if side > 0 else STUCK_LOWER
+        if stuck:
+            st["mode"] = STUCK_UPPER if side > 0 else STUCK_LOWER
 
     def _outputs(self) -> dict[str, float]:
         y = self.state["y"]
@@ -154,5 +156,5 @@ IMPACT_OSCILLATOR = UnitType(
     OSCILLATOR_PARAMS,
     FmuIdentity("RubcosimImpactOscillator"),
     states=(State("x", "m", "length"), State("v", "m/s", "velocity")),
-    kernels=(free_acceleration, elastic_stop_force, impact_velocity),
+    kernels=(free_acceleration, elastic_stop_force, barrier_gap, pressing, stop_impact),
 )

@@ -11,10 +11,11 @@ from typing import Any
 
 from .bearing_unit import LINEAR_BEARING, OILFILM_BEARING
 from .controller_unit import DELAYED_FEEDBACK
-from .declaration import DeclarationError, UnitType, Wire, reduced_mass
+from .declaration import DeclarationError, UnitType, Wire
 from .oscillator_unit import IMPACT_OSCILLATOR
 from .parameters import Param
 from .rotor_unit import JEFFCOTT_ROTOR, TWO_MASS_ROTOR
+from .stator import reduced_mass
 from .stator_unit import CASING_STATOR, ELASTIC_STATOR, RIGID_STATOR
 from .unit import Unit
 

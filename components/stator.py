@@ -114,18 +114,115 @@ def rigid_impact(
 
 
 @njit
+def penalty_normal(dist: float, vn: float, d: float, kc: float, cc: float) -> float:
+    """Kelvin-Voigt normal force ``Fn = kc (dist - d) + cc vn`` of a disc in contact, N.
+
+    ``dist`` (m) is the disc's distance from the stator centre, ``vn`` (m/s) its
+    outward normal speed relative to the stator; ``Fn > 0`` pushes the disc
+    inward.  Linear, as in the brief: it may pull for a moment before
+    separation, which keeps the restitution of :func:`damping_from_restitution`
+    exact.  The caller decides contact (``dist > d``).
+    """
+    return kc * (dist - d) + cc * vn
+
+
+@njit
 def penalty_normal_force(
     rx: float, ry: float, rvx: float, rvy: float, d: float, kc: float, cc: float
-):
-    """Normal penalty force ``Fn = kc (dist - d) + cc * d(dist)/dt``, N (>0 pushes inward).
-
-    Linear Kelvin-Voigt contact, as in the brief: it may pull for a moment
-    before separation, which keeps the restitution of
-    :func:`damping_from_restitution` exact.  Returns ``(Fn, dist, nx, ny)``;
-    ``Fn`` is for a disc in contact (the caller decides contact).
-    """
+) -> tuple[float, float, float, float]:
+    """:func:`penalty_normal` for the relative position r (m) and velocity rv (m/s) of
+    the disc; returns ``(Fn, dist, nx, ny)``."""
     dist, nx, ny = contact_geometry(rx, ry)
-    return kc * (dist - d) + cc * (rvx * nx + rvy * ny), dist, nx, ny
+    return penalty_normal(dist, rvx * nx + rvy * ny, d, kc, cc), dist, nx, ny
+
+
+@njit
+def friction_limit(mu: float, n: float) -> float:
+    """Largest Coulomb friction force ``mu max(Fn, 0)``, N.
+
+    Friction follows the compressive part of the normal force only: in the
+    moment before a penalty contact separates the damper makes ``Fn`` pull
+    (``Fn < 0``), and ``mu Fn`` would then push the disc along its slip.
+    """
+    return mu * max(n, 0.0)
+
+
+@njit
+def friction_reserve(mu: float, n: float, hold: float) -> float:
+    """How much more friction a sticking contact could give, ``mu max(Fn, 0) - |hold|``,
+    N; it starts to slide when this falls through 0 (``hold``: the tangential force
+    that keeps the slip speed constant, :func:`sticking_friction`)."""
+    return friction_limit(mu, n) - abs(hold)
+
+
+@njit
+def friction_force(mode: int, mu: float, n: float, hold: float) -> float:
+    """Tangential contact force on the disc along t (N) in contact mode ``mode``.
+
+    Sliding with positive slip: ``-mu max(Fn, 0)`` (against the slip); with
+    negative slip ``+mu max(Fn, 0)``; sticking: the holding force ``hold``;
+    free: 0.
+    """
+    if mode == MODE_SLIDE_POS:
+        return -friction_limit(mu, n)
+    if mode == MODE_SLIDE_NEG:
+        return friction_limit(mu, n)
+    if mode == MODE_STICK:
+        return hold
+    return 0.0
+
+
+@njit
+def slip_mode(slip: float) -> int:
+    """Contact mode of a contact that slips at ``slip`` m/s: sliding with its sign, or
+    sticking (no friction needed to hold it) when it is exactly zero."""
+    if slip > 0.0:
+        return MODE_SLIDE_POS
+    if slip < 0.0:
+        return MODE_SLIDE_NEG
+    return MODE_STICK
+
+
+@njit
+def settle_mode(slip: float, threshold: float, reserve: float, hold: float, current: int) -> int:
+    """Mode of a disc settling into contact, or at a slip event of a contact in ``current``.
+
+    ``slip`` (m/s) is the slip speed; above ``threshold`` (m/s; pass ``inf`` at
+    a slip event, where the slip is zero by construction) the contact slides
+    with its sign.  Otherwise it sticks if friction can hold it (``reserve =
+    mu max(Fn, 0) - |hold| >= 0``, N) or if sliding would go back the way it
+    came (``current``), which the slip event just ruled out (round-off).  A
+    sticking contact whose reserve ran out (``current = MODE_STICK``) slides
+    against the holding force ``hold`` (N, along t).
+    """
+    if abs(slip) > threshold:
+        return MODE_SLIDE_POS if slip > 0.0 else MODE_SLIDE_NEG
+    slide = MODE_SLIDE_NEG if hold > 0.0 else MODE_SLIDE_POS
+    if current != MODE_STICK and (reserve >= 0.0 or slide == current):
+        return MODE_STICK
+    return slide
+
+
+@njit
+def chattering_ended(rebound: float, v_chat: float, flight: float, min_flight: float) -> bool:
+    """Whether a rigid impact ends a chattering sequence.
+
+    ``rebound`` (m/s, > 0 leaving the stator) is the normal speed just after
+    the impact; below ``v_chat`` the next flight would rise a few ulps of the
+    gap at most, so the disc is put on the stator (sustained contact if the
+    other forces press it on, else free with zero normal speed).  ``flight``
+    (s) is the time since the previous impact: a flight shorter than
+    ``min_flight`` ends it too, so an accumulation of impacts never stalls a
+    master that cannot resolve it (pass ``inf`` where every flight is
+    resolved).
+    """
+    return rebound < v_chat or flight < min_flight
+
+
+def reduced_mass(m: float, ms: float) -> float:
+    """Reduced mass ``m ms / (m + ms)`` (kg) of a disc of mass m on a casing of mass ms:
+    the mass a penalty contact sees, used to derive its damping from restitution."""
+    return m * ms / (m + ms)
 
 
 @njit
@@ -156,17 +253,14 @@ def penalty_contact_force(
     With ``cc = 0`` and positive slip this is the Chu-Zhang force
     ``-kc (1 - d/e) [rx - mu ry, mu rx + ry]``.  Returns ``(fx, fy, Fn)``.
 
-    Friction follows the compressive part of the normal force only: in the
-    moment before separation the damper makes ``Fn`` pull (``Fn < 0``), and a
-    Coulomb force ``mu Fn`` would then push the disc along its slip.  The
-    reference engines clamp it the same way (``rubcosim.reference.system``).
+    Friction is :func:`friction_force` of the slip's sign (zero slip: none),
+    the kernel the reference engines call too.
     """
     fn, dist, nx, ny = penalty_normal_force(rx, ry, rvx, rvy, d, kc, cc)
     if dist <= d:
         return 0.0, 0.0, 0.0
-    vs = slip_speed(rvx, rvy, nx, ny, rd, w)
-    sgn = 1.0 if vs > 0.0 else (-1.0 if vs < 0.0 else 0.0)
-    fx, fy = contact_force_components(fn, -mu * max(fn, 0.0) * sgn, nx, ny)
+    mode = slip_mode(slip_speed(rvx, rvy, nx, ny, rd, w))
+    fx, fy = contact_force_components(fn, friction_force(mode, mu, fn, 0.0), nx, ny)
     return fx, fy, fn
 
 

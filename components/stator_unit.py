@@ -33,6 +33,8 @@ from .stator import (
     contact_force_components,
     contact_geometry,
     damping_from_restitution,
+    friction_force,
+    friction_reserve,
     penalty_contact_force,
     penalty_normal_force,
     rigid_impact,
@@ -173,12 +175,11 @@ class RigidStatorUnit(Unit):
             ofx, ofy, nx, ny, vt, vn, dist, q["clearance"], m, q["constraint_rate"]
         )
         hold = sticking_friction(-ofx * ny + ofy * nx, 0.0, vt, vn, dist, m, math.inf)
-        mu_n = q["friction"] * max(n, 0.0)
-        ft = {MODE_SLIDE_POS: -mu_n, MODE_SLIDE_NEG: mu_n, MODE_STICK: hold}[mode]
+        ft = friction_force(mode, q["friction"], n, hold)
         out["fx"], out["fy"] = contact_force_components(n, ft, nx, ny)
         out["normal_force"] = n
         out["contact"] = 2.0 if mode == MODE_STICK else 1.0
-        out["hold_margin"] = mu_n - abs(hold)
+        out["hold_margin"] = friction_reserve(q["friction"], n, hold)
         out["hold_force"] = hold
         return out
 

@@ -32,6 +32,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
+from .kernels import polynomial_at
 from .parameters import Param, real, resolve
 
 
@@ -177,8 +178,7 @@ class Unit:
         d = self.du.get(name)
         if d is None:
             return self.u[name]
-        s = t - self.time
-        return self.u[name] + s * (d[0] + 0.5 * s * d[1])
+        return polynomial_at(self.u[name], d[0], d[1], t - self.time)
 
     def input_rows(self, names: tuple[str, ...]) -> np.ndarray:
         """The polynomials of inputs ``names`` as rows (value, d1, d2) at the step's start

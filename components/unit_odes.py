@@ -13,6 +13,7 @@ from __future__ import annotations
 
 from .bearing import linear_bearing_force
 from .jit import njit
+from .kernels import planar_newton, polynomial_at
 from .rotor import jeffcott_force, journal_force, two_mass_disc_force
 from .stator import penalty_contact_force
 
@@ -41,7 +42,7 @@ CASING_P = (
 @njit
 def input_at(u, i, s):
     """Input ``i`` at ``s`` seconds into the step."""
-    return u[i, 0] + s * (u[i, 1] + 0.5 * s * u[i, 2])
+    return polynomial_at(u[i, 0], u[i, 1], u[i, 2], s)
 
 
 @njit
@@ -52,10 +53,7 @@ def unit_rhs(kind, t, y, p, u, t0, dy):
         # state (x, y, vx, vy) of the disc; inputs fx, fy (N)
         m = p[0]
         fx, fy = jeffcott_force(t, y[0], y[1], y[2], y[3], m, p[1], p[2], p[3], p[4], p[5])
-        dy[0] = y[2]
-        dy[1] = y[3]
-        dy[2] = (fx + input_at(u, 0, s)) / m
-        dy[3] = (fy + input_at(u, 1, s)) / m
+        planar_newton(y, 0, fx + input_at(u, 0, s), fy + input_at(u, 1, s), m, dy)
     elif kind == TWO_MASS:
         # state: disc (x, y, vx, vy), journal (x, y, vx, vy); inputs fx, fy on the disc
         # and journal_fx, journal_fy
@@ -64,14 +62,8 @@ def unit_rhs(kind, t, y, p, u, t0, dy):
             t, y[0], y[1], y[2], y[3], y[4], y[5], y[6], y[7], m, p[1], k, cs, p[3], p[4], g
         )
         jx, jy = journal_force(y[0], y[1], y[2], y[3], y[4], y[5], y[6], y[7], k, cs, mj, cj, g)
-        dy[0] = y[2]
-        dy[1] = y[3]
-        dy[2] = (fx + input_at(u, 0, s)) / m
-        dy[3] = (fy + input_at(u, 1, s)) / m
-        dy[4] = y[6]
-        dy[5] = y[7]
-        dy[6] = (jx + input_at(u, 2, s)) / mj
-        dy[7] = (jy + input_at(u, 3, s)) / mj
+        planar_newton(y, 0, fx + input_at(u, 0, s), fy + input_at(u, 1, s), m, dy)
+        planar_newton(y, 4, jx + input_at(u, 2, s), jy + input_at(u, 3, s), mj, dy)
     elif kind == CASING:
         # state: casing (x, y, vx, vy); inputs: disc x, y, vx, vy.  The mount is an
         # isotropic spring-damper (the linear bearing's law); the casing feels the
@@ -91,8 +83,4 @@ def unit_rhs(kind, t, y, p, u, t0, dy):
             p[5],
         )
         sx, sy = linear_bearing_force(y[0], y[1], y[2], y[3], p[8], p[9])
-        ms = p[10]
-        dy[0] = y[2]
-        dy[1] = y[3]
-        dy[2] = (sx - fx) / ms
-        dy[3] = (sy - fy) / ms
+        planar_newton(y, 0, sx - fx, sy - fy, p[10], dy)

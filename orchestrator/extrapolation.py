@@ -12,6 +12,8 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
+from rubcosim.components.kernels import polynomial_at
+
 Point = tuple[float, float]  # (time, value)
 
 
@@ -35,4 +37,4 @@ def polynomial(points: Sequence[Point], t: float) -> tuple[float, float, float]:
 
 def evaluate(value: float, d1: float, d2: float, s: float) -> float:
     """The polynomial given by its value and derivatives at the step start, ``s`` later."""
-    return value + s * (d1 + 0.5 * s * d2)
+    return polynomial_at(value, d1, d2, s)

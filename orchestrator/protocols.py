@@ -11,7 +11,13 @@ from __future__ import annotations
 import math
 from typing import Any, Protocol
 
-from rubcosim.components.stator import MODE_FREE, MODE_SLIDE_NEG, MODE_SLIDE_POS, MODE_STICK
+from rubcosim.components.stator import (
+    MODE_FREE,
+    MODE_SLIDE_POS,
+    MODE_STICK,
+    chattering_ended,
+    settle_mode,
+)
 
 from .events import Indicator
 
@@ -105,27 +111,27 @@ class RigidContact(EventProtocol):
         master.settle()
         flight = master.time - self.state["last_impact"]
         self.state["last_impact"] = master.time
-        if master.out[self.stator]["gap_rate"] < self.v_chat or flight < self.min_flight:
-            # chattering has ended: the disc stays on the stator if it is pressed onto it
+        # the rebound is the normal speed the stator sees after the reset: its gap rate
+        rebound = master.out[self.stator]["gap_rate"]
+        if chattering_ended(rebound, self.v_chat, flight, self.min_flight):
+            # the disc stays on the stator if it is pressed onto it
             self._settle_contact(master, slipping_from=MODE_FREE)
         return "impact"
 
     def _settle_contact(self, master: MasterView, slipping_from: int) -> None:
         """Sliding with the sign of the slip, or sticking when the slip is zero and
-        friction can hold it; free when nothing presses the disc onto the stator."""
-        if slipping_from == MODE_STICK:
-            # friction can no longer hold: slide against the holding force's direction
-            hold = master.out[self.stator]["hold_force"]
-            self._set_mode(master, MODE_SLIDE_NEG if hold > 0.0 else MODE_SLIDE_POS)
-        elif slipping_from != MODE_FREE or abs(master.out[self.stator]["slip"]) <= self.v_chat:
+        friction can hold it (the kernel the reference calls); free when nothing
+        presses the disc onto the stator."""
+        if slipping_from == MODE_FREE:
+            # the stator gives its normal and holding forces only in a contact mode
             self._set_mode(master, MODE_STICK)
-            out = master.out[self.stator]
-            slide = MODE_SLIDE_NEG if out["hold_force"] > 0.0 else MODE_SLIDE_POS
-            if out["hold_margin"] < 0.0 and slide != slipping_from:
-                self._set_mode(master, slide)
-        else:
-            slip = master.out[self.stator]["slip"]
-            self._set_mode(master, MODE_SLIDE_POS if slip > 0.0 else MODE_SLIDE_NEG)
+        out = master.out[self.stator]
+        threshold = self.v_chat if slipping_from == MODE_FREE else math.inf
+        mode = settle_mode(
+            out["slip"], threshold, out["hold_margin"], out["hold_force"], slipping_from
+        )
+        if mode != self.state["mode"]:
+            self._set_mode(master, mode)
         if master.out[self.stator]["normal_force"] <= 0.0:
             self._set_mode(master, MODE_FREE)
 

@@ -19,12 +19,13 @@ from rubcosim.scenario import ScenarioError, build_scenario, load_scenario
 SCENARIOS = Path(__file__).resolve().parent.parent / "scenarios"
 
 # scenario: (shortened t_end, bound on the relative error, impact counts equal?)
-# Rigid stators: the co-simulation ends chattering at rebounds below cosim.chatter_tol
-# (1e-7 of the velocity scale), the reference at sim.chatter_tol (1e-10), so it
-# counts fewer of the last, vanishing rebounds, and the offset stator's repeated
-# chattering leaves differences of that order.
+# Rigid stators: both end chattering by the same kernel at the same rebound speed
+# (sim.chatter_tol = cosim.chatter_tol = 1e-7 of the velocity scale), except the
+# offset stator, whose reference keeps sim.chatter_tol = 1e-10 (see
+# FINER_REFERENCE_CHATTER below): there the co-simulation counts fewer of the last,
+# vanishing rebounds, and the repeated chattering leaves differences of that order.
 CASES = {
-    "jeffcott_rigid_stator": (0.05, 1e-6, False),
+    "jeffcott_rigid_stator": (0.05, 1e-6, True),
     "jeffcott_offset_rigid_stator": (0.06, 3e-6, False),
     "jeffcott_elastic_stator": (0.03, 1e-6, True),
     "jeffcott_elastic_casing": (0.03, 1e-6, True),
@@ -56,6 +57,35 @@ def test_cosimulation_matches_the_reference(name):
         assert 0.8 * impacts["reference"] <= impacts["cosim"] <= impacts["reference"]
     if report["impacts_compared"]:
         assert report["impact_time_max_diff_s"] < 1e-8
+
+
+# The offset stator chatters once per period: with the co-simulation's 1e-7 a sequence
+# can end one rebound earlier in one engine than in the other, which costs 5e-8 in the
+# fast-vs-accurate agreement tested to 1e-8 in test_engines.py; its reference keeps 1e-10.
+FINER_REFERENCE_CHATTER = {"jeffcott_offset_rigid_stator"}
+
+
+def test_every_rigid_stator_scenario_ends_chattering_at_the_cosimulation_rebound_speed():
+    # the reference's sim.chatter_tol and the master's cosim.chatter_tol set the one
+    # threshold of components.stator.chattering_ended for the two sides
+    for path in sorted(SCENARIOS.glob("*.toml")):
+        sc = load_scenario(path)
+        stator = sc.system.units.get("stator")
+        if stator is None or stator.type != "rigid":
+            continue
+        if path.stem in FINER_REFERENCE_CHATTER:
+            assert sc.sim["chatter_tol"] < sc.cosim.chatter_tol, path.stem
+        else:
+            assert sc.sim["chatter_tol"] == sc.cosim.chatter_tol, path.stem
+
+
+def test_flagship_counts_the_reference_impacts_at_the_same_times():
+    # the whole run (t_end = 0.5 s): a chattering sequence ending in full annular rub
+    report, ref, co, rows = compare(load_scenario(SCENARIOS / "jeffcott_rigid_stator.toml"))
+    assert report["status"] == "ok", report["message"]
+    assert report["impacts"]["cosim"] == report["impacts"]["reference"] > 60
+    assert report["impacts_compared"] == report["impacts"]["reference"]
+    assert report["impact_time_max_diff_s"] < 1e-8
 
 
 def test_stiff_penalty_contact_with_releases_matches_the_reference():

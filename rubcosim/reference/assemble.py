@@ -15,7 +15,7 @@ from rubcosim.components.controller import base_delay
 from rubcosim.components.oscillator import STOP_KINDS, check_oscillator
 from rubcosim.components.parameters import ParameterError, resolve
 from rubcosim.components.registry import REGISTRY
-from rubcosim.components.stator import damping_from_restitution
+from rubcosim.components.stator import damping_from_restitution, reduced_mass
 
 from . import system as S
 
@@ -213,7 +213,7 @@ def _rotor_system(units: Mapping[str, Unit], chatter_tol: float) -> System:
             p[S.P_KC] = s["contact_stiffness"]
             m_eff = r["mass"]
             if stator.type == "casing":
-                m_eff = r["mass"] * s["mass"] / (r["mass"] + s["mass"])
+                m_eff = reduced_mass(r["mass"], s["mass"])
                 ip[S.IP_CASING] = len(y0)
                 p[S.P_MS] = s["mass"]
                 p[S.P_KS] = s["stiffness"]

@@ -29,7 +29,8 @@ that chatters inside a step.  Oscillator:
 
 Event slots
 -----------
-Four slots.  ``dirs[k]``: 0 not an event, -1 fires when g goes from > 0 to
+Four slots (layout and slot numbers: :mod:`.layout`; the oscillator family:
+:mod:`.oscillator_system`).  ``dirs[k]``: 0 not an event, -1 fires when g goes from > 0 to
 <= 0, +1 the reverse, 2 either way (a breakpoint).  ``rates[k] = j`` says
 slot j holds dg_k/dt, used to find grazing contacts inside a step.
 """
@@ -43,77 +44,34 @@ import numpy as np
 
 from rubcosim.components.bearing import linear_bearing_force, oilfilm_force
 from rubcosim.components.controller import delay_at, feedback_force
-from rubcosim.components.oscillator import (
-    STOP_ELASTIC_ONE,
-    STOP_ELASTIC_TWO,
-    STOP_NONE,
-    STOP_RIGID_ONE,
-    STOP_RIGID_TWO,
-    elastic_stop_force,
-    free_acceleration,
-    impact_velocity,
-)
+from rubcosim.components.kernels import planar_newton
 from rubcosim.components.rotor import jeffcott_force, journal_force, two_mass_disc_force
 from rubcosim.components.stator import (
     MODE_FREE,
-    MODE_SLIDE_NEG,
     MODE_SLIDE_POS,
     MODE_STICK,
+    chattering_ended,
     constraint_normal_force,
     contact_force_components,
     contact_geometry,
+    friction_force,
+    friction_reserve,
+    penalty_normal,
     rigid_impact,
+    settle_mode,
     sticking_friction,
 )
 
-FAMILY_ROTOR = 0
-FAMILY_OSCILLATOR = 1
-
-# ip layout
-IP_FAMILY = 0
-IP_ROTOR = 1  # 0 jeffcott, 1 two-mass
-IP_STATOR = 2  # 0 none, 1 rigid, 2 elastic, 3 casing
-IP_BEARING = 3  # 0 none, 1 linear, 2 oil film
-IP_CONTROL = 4  # 0 none, 1 position feedback, 2 velocity feedback
-IP_NSTATE = 5
-IP_JOURNAL = 6  # state offset of the journal, -1 if none
-IP_CASING = 7  # state offset of the casing, -1 if none
-IP_STOP = 8  # oscillator stop kind
-N_IP = 9
-
-ROTOR_JEFFCOTT, ROTOR_TWO_MASS = 0, 1
-STATOR_NONE, STATOR_RIGID, STATOR_ELASTIC, STATOR_CASING = 0, 1, 2, 3
-BEARING_NONE, BEARING_LINEAR, BEARING_OILFILM = 0, 1, 2
-CONTROL_NONE, CONTROL_POSITION, CONTROL_VELOCITY = 0, 1, 2
-
-# p layout, rotor family
-P_M, P_C, P_K, P_E, P_W, P_G, P_RD = 0, 1, 2, 3, 4, 5, 6
-P_MJ, P_CJ, P_CSH = 7, 8, 9
-P_D, P_X0, P_Y0, P_R, P_MU, P_KC, P_CC = 10, 11, 12, 13, 14, 15, 16
-P_MS, P_KS, P_CSC = 17, 18, 19
-P_KB, P_CB, P_SIGMA, P_CR = 20, 21, 22, 23
-P_KCTL, P_TAU0, P_EPS, P_NU, P_TON = 24, 25, 26, 27, 28
-# p layout, oscillator family
-P_A, P_B, P_C3, P_F, P_WF, P_DB, P_RR, P_KSTOP = 0, 1, 2, 3, 4, 5, 6, 7
-# shared
-P_VCHAT = 29  # normal speed below which a rebound counts as settled (chattering ends), m/s
-P_OMEGA_B = 30  # Baumgarte rate of the sustained-contact constraint, rad/s
-N_P = 32
-
-# MODE_FREE, MODE_SLIDE_POS, MODE_SLIDE_NEG, MODE_STICK come from components.stator
-MODE_STUCK_UPPER = 1
-MODE_STUCK_LOWER = 2
-
-N_EVENTS = 4
-N_DELAYED = 4  # the controller feeds back the disc state (x, y, vx, vy)
-
-KIND_BREAK = 0
-KIND_IMPACT = 1
-KIND_RELEASE = 2
-KIND_SLIP = 3
-KIND_CONTACT_ON = 4
-KIND_CONTACT_OFF = 5
-KIND_NAMES = ("breakpoint", "impact", "release", "slip", "contact_on", "contact_off")
+# The array layout is part of this module's interface (``system as S; S.P_M``), so
+# all of it is imported here, and every kernel below reads its slots by name.
+# ruff: noqa: F405
+from .layout import *  # noqa: F403
+from .oscillator_system import (
+    oscillator_apply,
+    oscillator_events,
+    oscillator_outputs,
+    oscillator_rhs,
+)
 
 
 @nb.njit(cache=True, inline="always")
@@ -185,7 +143,7 @@ def contact_normal_force(t, y, yd, p, ip, dist, nx, ny, vn, vt):
     if ip[IP_STATOR] == STATOR_RIGID:
         fx, fy = disc_external_force(t, y, yd, p, ip)
         return constraint_normal_force(fx, fy, nx, ny, vt, vn, dist, p[P_D], p[P_M], p[P_OMEGA_B])
-    return p[P_KC] * (dist - p[P_D]) + p[P_CC] * vn
+    return penalty_normal(dist, vn, p[P_D], p[P_KC], p[P_CC])
 
 
 @nb.njit(cache=True, inline="always")
@@ -204,13 +162,10 @@ def contact_force(t, y, yd, mode, p, ip):
         return 0.0, 0.0, 0.0
     dist, nx, ny, vn, vt = contact_kinematics(y, p, ip)
     n = contact_normal_force(t, y, yd, p, ip, dist, nx, ny, vn, vt)
-    if mode == MODE_SLIDE_POS:
-        ft = -p[P_MU] * max(n, 0.0)
-    elif mode == MODE_SLIDE_NEG:
-        ft = p[P_MU] * max(n, 0.0)
-    else:
-        ft = holding_friction(t, y, yd, p, ip, dist, nx, ny, vn, vt)
-    fx, fy = contact_force_components(n, ft, nx, ny)
+    hold = 0.0
+    if mode == MODE_STICK:
+        hold = holding_friction(t, y, yd, p, ip, dist, nx, ny, vn, vt)
+    fx, fy = contact_force_components(n, friction_force(mode, p[P_MU], n, hold), nx, ny)
     return fx, fy, n
 
 
@@ -228,43 +183,19 @@ def bearing_force(y: np.ndarray, p: np.ndarray, ip: np.ndarray):
 def rotor_rhs(t, y, yd, mode, p, ip, dy):
     fx, fy = disc_external_force(t, y, yd, p, ip)
     cfx, cfy, _ = contact_force(t, y, yd, mode, p, ip)
-    m = p[P_M]
-    dy[0] = y[2]
-    dy[1] = y[3]
-    dy[2] = (fx + cfx) / m
-    dy[3] = (fy + cfy) / m
+    planar_newton(y, 0, fx + cfx, fy + cfy, p[P_M], dy)
     j = ip[IP_JOURNAL]
     if j >= 0:
-        mj = p[P_MJ]
         jx, jy = journal_force(
             y[0], y[1], y[2], y[3], y[j], y[j + 1], y[j + 2], y[j + 3],
-            p[P_K], p[P_CSH], mj, p[P_CJ], p[P_G],
+            p[P_K], p[P_CSH], p[P_MJ], p[P_CJ], p[P_G],
         )  # fmt: skip
         bx, by = bearing_force(y, p, ip)
-        dy[j] = y[j + 2]
-        dy[j + 1] = y[j + 3]
-        dy[j + 2] = (jx + bx) / mj
-        dy[j + 3] = (jy + by) / mj
+        planar_newton(y, j, jx + bx, jy + by, p[P_MJ], dy)
     c = ip[IP_CASING]
     if c >= 0:
-        ms = p[P_MS]
         sx, sy = casing_support_force(y, p, ip)
-        dy[c] = y[c + 2]
-        dy[c + 1] = y[c + 3]
-        dy[c + 2] = (-cfx + sx) / ms
-        dy[c + 3] = (-cfy + sy) / ms
-
-
-@nb.njit(cache=True, inline="always")
-def oscillator_rhs(t, y, mode, p, ip, dy):
-    if mode != MODE_FREE:
-        dy[0] = 0.0
-        dy[1] = 0.0
-        return
-    acc = free_acceleration(t, y[0], y[1], p[P_A], p[P_B], p[P_C3], p[P_F], p[P_WF])
-    acc += elastic_stop_force(y[0], ip[IP_STOP], p[P_DB], p[P_KSTOP])
-    dy[0] = y[1]
-    dy[1] = acc
+        planar_newton(y, c, -cfx + sx, -cfy + sy, p[P_MS], dy)
 
 
 @nb.njit(cache=True, inline="always")
@@ -298,37 +229,11 @@ def rotor_events(t, y, yd, mode, p, ip, g, dirs, rates):
         dirs[0] = 1
         rates[0] = 1
     if mode == MODE_STICK:
-        g[2] = p[P_MU] * max(n, 0.0) - abs(holding_friction(t, y, yd, p, ip, dist, nx, ny, vn, vt))
+        g[2] = friction_reserve(p[P_MU], n, holding_friction(t, y, yd, p, ip, dist, nx, ny, vn, vt))
         dirs[2] = -1
     else:
         g[2] = vt + p[P_RD] * p[P_W]
         dirs[2] = -1 if mode == MODE_SLIDE_POS else 1
-
-
-@nb.njit(cache=True, inline="always")
-def oscillator_events(t, y, mode, p, ip, g, dirs, rates):
-    stop = ip[IP_STOP]
-    if stop == STOP_NONE:
-        return
-    D = p[P_DB]
-    if mode == MODE_STUCK_UPPER:
-        g[0] = free_acceleration(t, D, 0.0, p[P_A], p[P_B], p[P_C3], p[P_F], p[P_WF])
-        dirs[0] = -1
-        return
-    if mode == MODE_STUCK_LOWER:
-        g[2] = -free_acceleration(t, -D, 0.0, p[P_A], p[P_B], p[P_C3], p[P_F], p[P_WF])
-        dirs[2] = -1
-        return
-    rigid = stop == STOP_RIGID_ONE or stop == STOP_RIGID_TWO
-    g[0] = D - y[0]
-    g[1] = -y[1]
-    dirs[0] = -1 if rigid else 2
-    rates[0] = 1
-    if stop == STOP_RIGID_TWO or stop == STOP_ELASTIC_TWO:
-        g[2] = y[0] + D
-        g[3] = y[1]
-        dirs[2] = -1 if rigid else 2
-        rates[2] = 3
 
 
 @nb.njit(cache=True, inline="always")
@@ -349,22 +254,16 @@ def settle_contact(t, y, yd, p, ip, slip_threshold, current):
     """Mode of a disc in contact: sliding with the sign of the slip, or sticking
     if the slip is (below ``slip_threshold``) zero and friction can hold it."""
     dist, nx, ny, vn, vt = contact_kinematics(y, p, ip)
-    vs = vt + p[P_RD] * p[P_W]
-    if abs(vs) > slip_threshold:
-        return MODE_SLIDE_POS if vs > 0.0 else MODE_SLIDE_NEG
     n = contact_normal_force(t, y, yd, p, ip, dist, nx, ny, vn, vt)
-    ft = holding_friction(t, y, yd, p, ip, dist, nx, ny, vn, vt)
-    new_mode = MODE_SLIDE_NEG if ft > 0.0 else MODE_SLIDE_POS
-    if abs(ft) <= p[P_MU] * max(n, 0.0) or new_mode == current:
-        # Friction holds the slip at zero (or round-off would send it back the
-        # way it came, which the slip event just ruled out).
-        if ip[IP_STATOR] == STATOR_RIGID:
-            # rolling without slip on a fixed stator: tangential speed exactly -Rd w
-            dvt = -p[P_RD] * p[P_W] - vt
-            y[2] -= dvt * ny
-            y[3] += dvt * nx
-        return MODE_STICK
-    return new_mode
+    hold = holding_friction(t, y, yd, p, ip, dist, nx, ny, vn, vt)
+    reserve = friction_reserve(p[P_MU], n, hold)
+    mode = settle_mode(vt + p[P_RD] * p[P_W], slip_threshold, reserve, hold, current)
+    if mode == MODE_STICK and ip[IP_STATOR] == STATOR_RIGID:
+        # rolling without slip on a fixed stator: tangential speed exactly -Rd w
+        dvt = -p[P_RD] * p[P_W] - vt
+        y[2] -= dvt * ny
+        y[3] += dvt * nx
+    return mode
 
 
 @nb.njit(cache=True)
@@ -385,7 +284,8 @@ def rotor_apply(k, t, y, yd, mode, p, ip):
     vn = vx * nx + vy * ny
     y[2] = vx
     y[3] = vy
-    if -vn >= p[P_VCHAT]:
+    # This engine resolves every flight: only the rebound speed ends chattering.
+    if not chattering_ended(-vn, p[P_VCHAT], math.inf, 0.0):
         return MODE_FREE, KIND_IMPACT
     # The rebound is too small to leave: chattering has ended.
     y[2] = vx - vn * nx
@@ -395,27 +295,6 @@ def rotor_apply(k, t, y, yd, mode, p, ip):
     n = constraint_normal_force(fx, fy, nx, ny, vt, 0.0, d, d, p[P_M], 0.0)
     if n > 0.0:
         return settle_contact(t, y, yd, p, ip, p[P_VCHAT], MODE_FREE), KIND_IMPACT
-    return MODE_FREE, KIND_IMPACT
-
-
-@nb.njit(cache=True)
-def oscillator_apply(k, t, y, mode, p, ip):
-    stop = ip[IP_STOP]
-    D = p[P_DB]
-    if stop == STOP_ELASTIC_ONE or stop == STOP_ELASTIC_TWO:
-        entering = y[1] > 0.0 if k == 0 else y[1] < 0.0
-        return mode, KIND_CONTACT_ON if entering else KIND_CONTACT_OFF
-    if mode != MODE_FREE:
-        return MODE_FREE, KIND_RELEASE
-    side = 1.0 if k == 0 else -1.0
-    y[0] = side * D
-    y[1] = impact_velocity(y[1], p[P_RR])
-    if abs(y[1]) >= p[P_VCHAT]:
-        return MODE_FREE, KIND_IMPACT
-    y[1] = 0.0
-    acc = free_acceleration(t, y[0], 0.0, p[P_A], p[P_B], p[P_C3], p[P_F], p[P_WF])
-    if side * acc > 0.0:
-        return (MODE_STUCK_UPPER if k == 0 else MODE_STUCK_LOWER), KIND_IMPACT
     return MODE_FREE, KIND_IMPACT
 
 
@@ -471,14 +350,7 @@ def outputs(t, y, yd, mode, p, ip, out):
     """Recorded outputs (see :func:`output_names`); ``stator.contact`` and
     ``oscillator.contact`` are 0 free, 1 in contact or sliding, 2 sticking."""
     if ip[IP_FAMILY] == FAMILY_OSCILLATOR:
-        out[0] = y[0]
-        out[1] = y[1]
-        out[2] = 0.0 if mode == MODE_FREE else 2.0
-        stop = ip[IP_STOP]
-        if (stop == STOP_ELASTIC_ONE or stop == STOP_ELASTIC_TWO) and (
-            y[0] > p[P_DB] or (stop == STOP_ELASTIC_TWO and y[0] < -p[P_DB])
-        ):
-            out[2] = 1.0
+        oscillator_outputs(y, mode, p, ip, out)
         return
     for i in range(4):
         out[i] = y[i]
