@@ -53,9 +53,10 @@ from typing import Any
 
 import numpy as np
 
-from rubcosim.orchestrator.assembly import output_times, run_cosim
+from rubcosim.orchestrator.assembly import run_cosim
 from rubcosim.runner import run_scenario
 from rubcosim.scenario import Scenario, load_scenario
+from rubcosim.timegrid import output_times
 
 REPO = Path(__file__).resolve().parents[1]
 DEFAULT_OUT = REPO / "benchmarks" / "results"

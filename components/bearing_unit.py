@@ -83,6 +83,7 @@ OILFILM_BEARING = UnitType(
     FmuIdentity("RubcosimOilFilmBearing"),
     needs=(Need("speed", "rotor.speed"),),
     wiring=JOURNAL_WIRING,
+    length_scale=lambda q: q["clearance"],
     kernels=(oilfilm_force,),
 )
 

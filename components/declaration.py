@@ -110,6 +110,11 @@ class UnitType:
     ``kernels``: the compiled functions holding its physics (shared with the
     reference).  ``mass_scale``: the parameter (kg) that sizes the forces the
     scenario's units exchange (force scale = mass * velocity scale**2 / length scale).
+    ``length_scale(params)``: a length (m) the motion is measured against (a
+    clearance, an unbalance); the model's length scale is the largest.  ``clock(params)``:
+    for the unit that drives the model, ``(forcing frequency, frequency scale)`` in
+    rad/s: the forcing period is 2 pi over the first, the velocity scale the length
+    scale times the second (see :mod:`.graph`).
     """
 
     unit_class: type[Unit]
@@ -121,6 +126,8 @@ class UnitType:
     wiring: tuple[Wire, ...] = ()
     kernels: tuple[Callable[..., Any], ...] = ()
     mass_scale: str = ""
+    length_scale: Callable[[Mapping[str, Any]], float] | None = None
+    clock: Callable[[Mapping[str, Any]], tuple[float, float]] | None = None
 
     @property
     def role(self) -> str:

@@ -156,5 +156,8 @@ IMPACT_OSCILLATOR = UnitType(
     OSCILLATOR_PARAMS,
     FmuIdentity("RubcosimImpactOscillator"),
     states=(State("x", "m", "length"), State("v", "m/s", "velocity")),
+    # the barrier's distance, or 1 (a nondimensional oscillator) when it is at 0
+    length_scale=lambda q: abs(q["barrier"]) if q["barrier"] != 0.0 else 1.0,
+    clock=lambda q: (q["forcing_frequency"], q["forcing_frequency"]),
     kernels=(free_acceleration, elastic_stop_force, barrier_gap, pressing, stop_impact),
 )

@@ -156,6 +156,13 @@ class TwoMassRotorUnit(_Rotor):
         return out
 
 
+def rotor_clock(q: Mapping[str, Any]) -> tuple[float, float]:
+    """The rotor drives the model: forcing at the spin speed (at the natural frequency
+    sqrt(k / m) when it does not spin), frequency scale the faster of the two, rad/s."""
+    wn = math.sqrt(q["stiffness"] / q["mass"])
+    return (q["speed"] if q["speed"] > 0.0 else wn), max(q["speed"], wn)
+
+
 def constraint_rate(q: Mapping[str, Any]) -> float:
     """Rate (rad/s) at which a constraint on the disc pulls drift back: the faster of the
     spin speed and the shaft's natural frequency sqrt(k / m), the rotor's own time scale."""
@@ -185,6 +192,8 @@ JEFFCOTT_ROTOR = UnitType(
     wiring=DISC_WIRING,
     kernels=(jeffcott_force, unit_rhs),
     mass_scale="mass",
+    length_scale=lambda q: q["eccentricity"],
+    clock=rotor_clock,
 )
 
 TWO_MASS_ROTOR = UnitType(
@@ -200,4 +209,6 @@ TWO_MASS_ROTOR = UnitType(
     ),
     kernels=(two_mass_disc_force, unit_rhs),
     mass_scale="mass",
+    length_scale=lambda q: q["eccentricity"],
+    clock=rotor_clock,
 )

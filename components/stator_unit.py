@@ -316,6 +316,7 @@ RIGID_STATOR = UnitType(
         Wire("other_fx", ("rotor.force_x", "controller.ux")),
         Wire("other_fy", ("rotor.force_y", "controller.uy")),
     ),
+    length_scale=lambda q: q["clearance"],
     kernels=(
         contact_geometry,
         rigid_impact,
@@ -331,6 +332,7 @@ ELASTIC_STATOR = UnitType(
     FmuIdentity("RubcosimElasticStator"),
     needs=(*ROTOR_NEEDS, Need("impact_mass", "rotor.disc_mass")),
     wiring=DISC_WIRING,
+    length_scale=lambda q: q["clearance"],
     kernels=(contact_geometry, penalty_contact_force, penalty_normal_force),
 )
 
@@ -342,5 +344,6 @@ CASING_STATOR = UnitType(
     # the disc meets the casing: the impact sees their reduced mass
     needs=(*ROTOR_NEEDS, Need("impact_mass", "rotor.disc_mass", reduced_with="mass")),
     wiring=DISC_WIRING,
+    length_scale=lambda q: q["clearance"],
     kernels=(contact_geometry, penalty_contact_force, penalty_normal_force, unit_rhs),
 )

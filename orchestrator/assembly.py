@@ -26,8 +26,10 @@ import numpy as np
 from rubcosim.components.declaration import SCALE_KINDS
 from rubcosim.components.registry import REGISTRY
 from rubcosim.components.units import unit_class, unit_type
+from rubcosim.components.wiring import (
+    Connection,
+)
 
-from .connections import Connection, apply_table, check_connections, default_connections
 from .master import CosimError, CosimResult, Master
 from .protocols import ElasticContact, EventProtocol, RigidContact
 from .settings import CosimSettings
@@ -40,7 +42,7 @@ def unit_parameters(scenario: Any, settings: CosimSettings) -> dict[str, dict[st
     """Every unit's co-simulation parameters: its scenario parameters, what it needs from
     its neighbours (as its type declares: :meth:`Registry.neighbour_params`), and, where
     its class has them, the units' own integrator tolerances and the chattering tolerance."""
-    units = scenario.system.units
+    units = scenario.graph.units
     types = {role: u.type for role, u in units.items()}
     params = {role: dict(u.params) for role, u in units.items()}
     for role, values in REGISTRY.neighbour_params(types, params).items():
@@ -56,49 +58,23 @@ def unit_parameters(scenario: Any, settings: CosimSettings) -> dict[str, dict[st
     return params
 
 
-def scenario_connections(scenario: Any) -> list[Connection]:
-    types = {role: u.type for role, u in scenario.system.units.items()}
-    connections = apply_table(default_connections(types), scenario.connections)
-    classes = {role: unit_class(role, t) for role, t in types.items()}
-    foreign = scenario.fmus
-    check_connections(
-        connections,
-        {
-            **{r: [s.name for s in c.inputs] for r, c in classes.items()},
-            **{n: list(f.inputs) for n, f in foreign.items()},
-        },
-        {
-            **{r: [s.name for s in c.outputs] for r, c in classes.items()},
-            **{n: list(f.outputs) for n, f in foreign.items()},
-        },
-    )
-    return connections
-
-
 def _measure_scales(scenario: Any) -> dict[str, float]:
-    """The system's scale for each unit of measure (as the reference engines scale their
-    absolute tolerance): a declared state's kind gives its unit of measure its scale (the
-    length scale for m, the velocity scale for m/s), and the declared mass scale times the
-    velocity scale times the frequency sizes N."""
-    system = scenario.system
-    types = {role: u.type for role, u in system.units.items()}
-    kinds = REGISTRY.state_scales(types)
-    by_kind: dict[str, float] = {}
-    for name, scale in zip(system.state_names, system.state_scale, strict=True):
-        by_kind.setdefault(kinds[name], float(scale))
-    length, vscale = by_kind["length"], by_kind["velocity"]
-    params = {role: u.params for role, u in system.units.items()}
-    mass = REGISTRY.mass_scale(types, params)
+    """The model's scale for each unit of measure (as the reference engines scale their
+    absolute tolerance): the length scale for m, the velocity scale for m/s, and the
+    declared mass scale times the velocity scale times the frequency for N."""
+    graph = scenario.graph
+    scales = graph.scales
+    mass = REGISTRY.mass_scale(graph.types, graph.params)
     return {
-        SCALE_KINDS["length"]: length,
-        SCALE_KINDS["velocity"]: vscale,
-        "N": mass * vscale * vscale / length,
+        SCALE_KINDS["length"]: scales.length,
+        SCALE_KINDS["velocity"]: scales.velocity,
+        "N": mass * scales.velocity * scales.velocity / scales.length,
     }
 
 
 def _input_measures(scenario: Any, connections: list[Connection]) -> dict[str, str]:
     """The unit of measure of every connected input ("" for a foreign FMU's)."""
-    types = {role: u.type for role, u in scenario.system.units.items()}
+    types = {role: u.type for role, u in scenario.graph.units.items()}
     measures = {}
     for c in connections:
         if c.unit not in types:  # a foreign FMU: no declared unit of measure to go by
@@ -126,12 +102,12 @@ def divergence_bounds(scenario: Any, connections: list[Connection]) -> dict[str,
 
 
 def scenario_protocols(scenario: Any, settings: CosimSettings) -> list[EventProtocol]:
-    units = scenario.system.units
+    units = scenario.graph.units
     if "stator" not in units:
         return []
     if units["stator"].type == "rigid":
-        v_chat = settings.chatter_tol * scenario.system.velocity_scale
-        min_flight = 10.0 * settings.event_tol * scenario.system.forcing_period
+        v_chat = settings.chatter_tol * scenario.graph.scales.velocity
+        min_flight = 10.0 * settings.event_tol * scenario.graph.scales.forcing_period
         return [RigidContact("stator", "rotor", v_chat, min_flight)]
     return [ElasticContact("stator")]
 
@@ -170,7 +146,7 @@ def open_units(
     from .fmu_unit import FmuUnit
 
     params = unit_parameters(scenario, settings)
-    types = {role: u.type for role, u in scenario.system.units.items()}
+    types = {role: u.type for role, u in scenario.graph.units.items()}
     classes = {role: unit_class(role, t) for role, t in types.items()}
     foreign = scenario.fmus
     feedthrough = {role: cls.feedthrough for role, cls in classes.items()}
@@ -213,22 +189,6 @@ def check_rollback(scenario: Any, settings: CosimSettings) -> None:
             )
 
 
-def output_times(scenario: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The sorted union of the output grid and the stroboscopic times, and where each
-    of the two lies in it (the reference run records the same times)."""
-    from rubcosim.reference.simulate import output_grid
-    from rubcosim.timegrid import strobe_times
-
-    sim = scenario.sim
-    grid = output_grid(sim["t_start"], sim["t_end"], sim["output_step"])
-    strobe = strobe_times(scenario)
-    both = np.concatenate((grid, strobe))
-    order = np.argsort(both, kind="stable")
-    rank = np.empty_like(order)
-    rank[order] = np.arange(order.size)
-    return both[order], rank[: grid.size], rank[grid.size :]
-
-
 def run_cosim(
     scenario: Any,
     settings: CosimSettings | None = None,
@@ -236,14 +196,17 @@ def run_cosim(
     times: np.ndarray | None = None,
     fmu_dir: Path | None = None,
 ) -> CosimResult:
-    """Co-simulate a scenario; ``record`` defaults to the scenario's outputs and ``times``
-    to its output grid plus stroboscopic times."""
+    """Co-simulate a scenario's model graph; ``record`` defaults to the scenario's
+    outputs and ``times`` to its output grid plus stroboscopic times."""
+    from rubcosim.timegrid import output_times
+
     settings = settings or scenario.cosim
     if times is None:
         times = output_times(scenario)[0]
-    connections = scenario_connections(scenario)
-    types = {role: u.type for role, u in scenario.system.units.items()}
-    period = scenario.system.forcing_period
+    graph = scenario.graph
+    connections = list(graph.connections)
+    types = graph.types
+    period = graph.scales.forcing_period
     if not math.isfinite(period) or period <= 0.0:
         raise ValueError("the scenario has no forcing period to scale the macro step by")
     check_rollback(scenario, settings)

@@ -38,8 +38,8 @@ from typing import Any
 import numpy as np
 
 from rubcosim.components.unit import StepError
+from rubcosim.components.wiring import Connection
 
-from .connections import Connection
 from .cosim_result import CosimError, CosimResult
 from .event_steps import EventSteps
 from .extrapolation import evaluate, polynomial

@@ -4,7 +4,8 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 
-from .connections import Connection
+from rubcosim.components.wiring import Connection
+
 from .cosim_result import CosimError
 
 

@@ -113,7 +113,7 @@ def check(
 ) -> CheckResult:
     """Co-simulate the scenario and compare it with the ``accurate`` engine (``rubcosim
     check``): per output the largest difference, impact counts and times (s)."""
-    from rubcosim.orchestrator.check import compare
+    from rubcosim.consistency import compare
 
     sc = _scenario(scenario, set)
     report, ref, co, rows = compare(sc, _settings(sc, backend))

@@ -8,7 +8,7 @@ import sys
 from typing import Any
 
 from rubcosim.components.parameters import ParameterError
-from rubcosim.orchestrator.connections import CouplingError
+from rubcosim.components.wiring import CouplingError
 from rubcosim.orchestrator.master import CosimError
 from rubcosim.orchestrator.settings import BACKENDS
 from rubcosim.reference.simulate import ENGINES

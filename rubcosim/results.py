@@ -159,7 +159,7 @@ class CheckResult:
 
     def write(self, out_dir: str | Path) -> Path:
         """Write ``report.json`` and ``comparison.png`` (as ``rubcosim check``)."""
-        from rubcosim.orchestrator.check import comparison_plot
+        from rubcosim.consistency import comparison_plot
 
         from .writing import write_directory
 

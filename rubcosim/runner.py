@@ -72,7 +72,8 @@ def run_cosim_scenario(scenario: Scenario, backend: str | None = None) -> CosimR
     """Co-simulate a scenario with its ``[cosim]`` settings (``backend`` overrides)."""
     from dataclasses import replace
 
-    from rubcosim.orchestrator.assembly import output_times, run_cosim
+    from rubcosim.orchestrator.assembly import run_cosim
+    from rubcosim.timegrid import output_times
 
     settings = scenario.cosim if backend is None else replace(scenario.cosim, backend=backend)
     times, grid_rows, strobe_rows = output_times(scenario)

@@ -28,11 +28,12 @@ from pathlib import Path
 from typing import Any
 
 from rubcosim.components.catalog import UNIT_TYPES
+from rubcosim.components.graph import ForeignNode, ModelGraph, build_graph, make_node
 from rubcosim.components.parameters import ParameterError
-from rubcosim.orchestrator.connections import CouplingError
+from rubcosim.components.wiring import CouplingError
 from rubcosim.orchestrator.foreign import ForeignFmu, ForeignFmuError, foreign_fmu
 from rubcosim.orchestrator.settings import CosimSettings, SettingsError, cosim_settings
-from rubcosim.reference.assemble import System, build_system, make_unit
+from rubcosim.reference.assemble import System, build_system
 
 from .errors import ScenarioError
 from .simsettings import SIM_DEFAULTS, sim_settings
@@ -51,6 +52,7 @@ class Scenario:
     record: list[str] | None
     plots: dict[str, list[str]]
     system: System
+    graph: ModelGraph
     source: str = ""
     parameters: dict[str, Any] = field(default_factory=dict)
     cosim: CosimSettings = field(default_factory=CosimSettings)
@@ -82,7 +84,7 @@ class Scenario:
     @property
     def unit_names(self) -> list[str]:
         """Every unit of a co-simulation: the rubcosim units, then the foreign FMUs."""
-        return [*self.system.units, *self.fmus]
+        return [*self.graph.units, *self.fmus]
 
 
 def _prefixed(source: str, exc: Exception) -> str:
@@ -222,7 +224,7 @@ def build_scenario(
         raise ScenarioError(str(exc)) from None
     try:
         built = {
-            role: make_unit(role, t["type"], {k: v for k, v in t.items() if k != "type"})
+            role: make_node(role, t["type"], {k: v for k, v in t.items() if k != "type"})
             for role, t in units.items()
         }
         system = build_system(built, chatter_tol=sim["chatter_tol"])
@@ -276,6 +278,14 @@ def build_scenario(
     for role, u in system.units.items():
         parameters.update({f"{role}.{k}": v for k, v in u.params.items()})
     parameters.update({f"sim.{k}": v for k, v in sim.items()})
+    try:
+        graph = build_graph(
+            built,
+            connections,
+            [ForeignNode(n, tuple(f.inputs), tuple(f.outputs)) for n, f in fmus.items()],
+        )
+    except CouplingError as exc:
+        raise ScenarioError(str(exc)) from None
     scenario = Scenario(
         name=str(meta.get("name", Path(source).stem if source else "scenario")),
         description=str(meta.get("description", "")),
@@ -284,6 +294,7 @@ def build_scenario(
         record=record,
         plots=plots,
         system=system,
+        graph=graph,
         source=source,
         parameters=parameters,
         cosim=cosim,
@@ -297,20 +308,13 @@ def build_scenario(
             f"cosim.order = {list(cosim.order)} must name every unit once "
             f"({', '.join(scenario.unit_names)})"
         )
-    own_units = list(scenario.system.units)
+    own_units = list(scenario.graph.units)
     strays = [n for n in cosim.fmu_units if n not in own_units]
     if strays:
         raise ScenarioError(
             f"cosim.fmu_units names {strays[0]!r}, which is not one of the scenario's own "
             f"units ({', '.join(own_units)})"
         )
-    if connections or fmus:
-        from rubcosim.orchestrator.assembly import scenario_connections
-
-        try:
-            scenario_connections(scenario)
-        except CouplingError as exc:
-            raise ScenarioError(str(exc)) from None
     return scenario
 
 

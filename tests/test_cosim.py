@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 
 from rubcosim.cli import main
+from rubcosim.consistency import compare
 from rubcosim.orchestrator.assembly import run_cosim
-from rubcosim.orchestrator.check import compare
 from rubcosim.reference.simulate import simulate
 from rubcosim.scenario import ScenarioError, build_scenario, load_scenario
 
@@ -277,10 +277,10 @@ def test_scenario_cosim_and_connection_tables_are_validated(tmp_path):
 
 
 def test_connection_scales_follow_the_units_of_measure():
-    from rubcosim.orchestrator.assembly import connection_scales, scenario_connections
+    from rubcosim.orchestrator.assembly import connection_scales
 
     sc = load_scenario(SCENARIOS / "jeffcott_rigid_stator.toml")
-    scales = connection_scales(sc, scenario_connections(sc))
+    scales = connection_scales(sc, list(sc.graph.connections))
     d, w, m = 1e-4, 379.473319, 10.0
     assert scales["stator.x"] == pytest.approx(d)
     assert scales["stator.vy"] == pytest.approx(d * w)

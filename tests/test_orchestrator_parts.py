@@ -8,7 +8,7 @@ import math
 import pytest
 
 from rubcosim.components.units import make_unit
-from rubcosim.orchestrator.connections import (
+from rubcosim.components.wiring import (
     Connection,
     CouplingError,
     apply_table,
@@ -222,7 +222,7 @@ def test_rigid_stator_sustained_contact_outputs():
 def test_nearest_differences_match_impacts_by_time():
     import numpy as np
 
-    from rubcosim.orchestrator.check import nearest_differences
+    from rubcosim.consistency import nearest_differences
 
     ref = np.array([1.0, 2.0, 2.5, 2.6, 4.0])
     got = nearest_differences(np.array([1.0 + 1e-9, 2.55, 4.0]), ref)

@@ -6,6 +6,8 @@ import pytest
 
 from rubcosim.components.catalog import UNIT_TYPES
 from rubcosim.components.controller import CONTROLLER_PARAMS
+from rubcosim.components.graph import UnitNode as Unit
+from rubcosim.components.graph import make_node as make_unit
 from rubcosim.components.oscillator import OSCILLATOR_PARAMS, STOP_KINDS
 from rubcosim.components.parameters import (
     Param,
@@ -18,7 +20,7 @@ from rubcosim.components.parameters import (
 )
 from rubcosim.components.rotor import JEFFCOTT_PARAMS
 from rubcosim.components.stator import ELASTIC_PARAMS, RIGID_PARAMS
-from rubcosim.reference.assemble import Unit, build_system, make_unit
+from rubcosim.reference.assemble import build_system
 
 
 def spec(specs, name):

@@ -23,9 +23,9 @@ from rubcosim.components.registry import REGISTRY, Registry
 from rubcosim.components.rotor_unit import JEFFCOTT_ROTOR
 from rubcosim.components.stator_unit import ELASTIC_STATOR, ElasticStatorUnit
 from rubcosim.components.units import UNIT_CLASSES, unit_type
+from rubcosim.components.wiring import default_connections
 from rubcosim.fmus.build import MODEL_IDENTIFIERS, fmu_specs
 from rubcosim.orchestrator.assembly import unit_parameters
-from rubcosim.orchestrator.connections import default_connections
 from rubcosim.reference import system as S
 from rubcosim.scenario import load_scenario
 

@@ -5,7 +5,10 @@
 scenario file with :func:`rubcosim.scenario.load_scenario`.
 """
 
-from .assemble import System, Unit, build_system, make_unit
+from rubcosim.components.graph import UnitNode as Unit
+from rubcosim.components.graph import make_node as make_unit
+
+from .assemble import System, build_system
 from .simulate import Events, Result, output_grid, simulate
 
 __all__ = [

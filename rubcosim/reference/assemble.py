@@ -5,15 +5,14 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import Any
 
 import numpy as np
 
 from rubcosim.components.bearing import oilfilm_sigma
-from rubcosim.components.catalog import UNIT_TYPES
 from rubcosim.components.controller import base_delay
+from rubcosim.components.graph import ModelGraph, UnitNode, model_scales
 from rubcosim.components.oscillator import STOP_KINDS, check_oscillator
-from rubcosim.components.parameters import ParameterError, resolve
+from rubcosim.components.parameters import ParameterError
 from rubcosim.components.registry import REGISTRY
 from rubcosim.components.stator import damping_from_restitution, reduced_mass
 
@@ -22,15 +21,6 @@ from . import system as S
 # Relative size of the rebound normal speed (to the system's velocity scale)
 # below which chattering is declared over and the contact becomes sustained.
 DEFAULT_CHATTER_TOL = 1e-10
-
-
-@dataclass
-class Unit:
-    """A unit of a scenario: its role (``rotor``, ``stator``...), type and parameters."""
-
-    role: str
-    type: str
-    params: dict[str, Any]
 
 
 @dataclass
@@ -47,7 +37,7 @@ class System:
     output_names: list[str]
     forcing_period: float
     velocity_scale: float
-    units: dict[str, Unit] = field(default_factory=dict)
+    units: dict[str, UnitNode] = field(default_factory=dict)
 
     @property
     def n_state(self) -> int:
@@ -62,7 +52,7 @@ class System:
 
 
 def _state_scale(
-    units: Mapping[str, Unit], names: list[str], length: float, vscale: float
+    units: Mapping[str, UnitNode], names: list[str], length: float, vscale: float
 ) -> np.ndarray:
     """Each state's scale (m or m/s) from the scale kind its unit type declares."""
     kinds = REGISTRY.state_scales({role: u.type for role, u in units.items()})
@@ -70,22 +60,15 @@ def _state_scale(
     return np.array([by_kind[kinds[name]] for name in names])
 
 
-def make_unit(role: str, type_: str, given: Mapping[str, Any]) -> Unit:
-    """Validate one unit's parameters (unknown, missing, wrong type, out of range)."""
-    if role not in UNIT_TYPES:
-        raise ParameterError(f"unit {role!r} is not known (known units: {', '.join(UNIT_TYPES)})")
-    kinds = UNIT_TYPES[role]
-    if not isinstance(type_, str) or type_ not in kinds:
-        raise ParameterError(f"{role}.type = {type_!r} is not one of {', '.join(kinds)}")
-    return Unit(role, type_, resolve(role, kinds[type_], given))
-
-
-def build_system(units: Mapping[str, Unit], chatter_tol: float = DEFAULT_CHATTER_TOL) -> System:
-    """Couple the units by their physical roles into one system.
+def build_system(
+    model: ModelGraph | Mapping[str, UnitNode], chatter_tol: float = DEFAULT_CHATTER_TOL
+) -> System:
+    """Compile a model (its graph, or just its units) into one monolithic system.
 
     The rotor's disc carries the unbalance, the stator contact and the
     controller force; the bearing acts on the journal of a two-mass rotor.
     """
+    units = model.units if isinstance(model, ModelGraph) else dict(model)
     if "oscillator" in units:
         extra = sorted(set(units) - {"oscillator"})
         if extra:
@@ -96,7 +79,7 @@ def build_system(units: Mapping[str, Unit], chatter_tol: float = DEFAULT_CHATTER
     return _rotor_system(units, chatter_tol)
 
 
-def _oscillator_system(u: Unit, chatter_tol: float) -> System:
+def _oscillator_system(u: UnitNode, chatter_tol: float) -> System:
     q = u.params
     check_oscillator(q)
     stop = STOP_KINDS.index(q["stop"])
@@ -109,8 +92,8 @@ def _oscillator_system(u: Unit, chatter_tol: float) -> System:
     p[S.P_DB] = q["barrier"]
     p[S.P_RR] = q["restitution"]
     p[S.P_KSTOP] = q["stop_stiffness"]
-    length = abs(q["barrier"]) if q["barrier"] != 0.0 else 1.0
-    vscale = length * q["forcing_frequency"]
+    scales = model_scales({"oscillator": u})
+    length, vscale = scales.length, scales.velocity
     p[S.P_VCHAT] = chatter_tol * vscale
     ip = np.zeros(S.N_IP, dtype=np.int64)
     ip[S.IP_FAMILY] = S.FAMILY_OSCILLATOR
@@ -129,13 +112,13 @@ def _oscillator_system(u: Unit, chatter_tol: float) -> System:
             {"oscillator": u}, ["oscillator.x", "oscillator.v"], length, vscale
         ),
         output_names=S.output_names(ip),
-        forcing_period=2.0 * math.pi / q["forcing_frequency"],
+        forcing_period=scales.forcing_period,
         velocity_scale=vscale,
         units={"oscillator": u},
     )
 
 
-def _rotor_system(units: Mapping[str, Unit], chatter_tol: float) -> System:
+def _rotor_system(units: Mapping[str, UnitNode], chatter_tol: float) -> System:
     rotor = units["rotor"]
     r = rotor.params
     stator = units.get("stator")
@@ -166,8 +149,6 @@ def _rotor_system(units: Mapping[str, Unit], chatter_tol: float) -> System:
     y0 = [r["x0"], r["y0"], r["vx0"], r["vy0"]]
     ip[S.IP_JOURNAL] = -1
     ip[S.IP_CASING] = -1
-    wn = math.sqrt(r["stiffness"] / r["mass"])
-    length = r["eccentricity"]
 
     if two_mass:
         ip[S.IP_ROTOR] = S.ROTOR_TWO_MASS
@@ -192,7 +173,6 @@ def _rotor_system(units: Mapping[str, Unit], chatter_tol: float) -> System:
                 raise ParameterError(
                     "rotor.journal_x0/journal_y0 put the journal outside the bearing clearance"
                 )
-            length = max(length, b["clearance"])
 
     if stator is not None:
         s = stator.params
@@ -201,7 +181,6 @@ def _rotor_system(units: Mapping[str, Unit], chatter_tol: float) -> System:
         p[S.P_Y0] = s["y_offset"]
         p[S.P_MU] = s["friction"]
         p[S.P_R] = s["restitution"]
-        length = max(length, s["clearance"])
         if stator.type == "rigid":
             ip[S.IP_STATOR] = S.STATOR_RIGID
             if math.hypot(r["x0"] - s["x_offset"], r["y0"] - s["y_offset"]) > s["clearance"]:
@@ -237,10 +216,8 @@ def _rotor_system(units: Mapping[str, Unit], chatter_tol: float) -> System:
         p[S.P_NU] = c["modulation_frequency"]
         p[S.P_TON] = c["t_on"]
 
-    if length <= 0.0:
-        length = 1e-3
-    omega = max(w, wn)
-    vscale = length * omega
+    scales = model_scales(units)
+    length, vscale, omega = scales.length, scales.velocity, scales.frequency
     p[S.P_VCHAT] = chatter_tol * vscale
     p[S.P_OMEGA_B] = omega
     n = len(y0)
@@ -255,7 +232,7 @@ def _rotor_system(units: Mapping[str, Unit], chatter_tol: float) -> System:
         state_names=names,
         state_scale=scale,
         output_names=S.output_names(ip),
-        forcing_period=2.0 * math.pi / w if w > 0.0 else 2.0 * math.pi / wn,
+        forcing_period=scales.forcing_period,
         velocity_scale=vscale,
         units=dict(units),
     )

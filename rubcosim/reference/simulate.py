@@ -8,6 +8,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from rubcosim.timegrid import output_grid
+
 from . import accurate, fast
 from .assemble import System
 from .core import (
@@ -76,17 +78,6 @@ class Result:
     def output(self, name: str) -> np.ndarray:
         """One recorded output by name, e.g. ``"rotor.x"``."""
         return self.outputs[:, self.output_names.index(name)]
-
-
-def output_grid(t_start: float, t_end: float, step: float) -> np.ndarray:
-    """Uniform grid from t_start to t_end inclusive (the last point is t_end)."""
-    n = int(math.floor((t_end - t_start) / step + 1e-9))
-    grid = np.minimum(t_start + step * np.arange(n + 1), t_end)
-    if grid[-1] < t_end - 1e-12 * max(1.0, abs(t_end)):
-        grid = np.append(grid, t_end)
-    else:
-        grid[-1] = t_end
-    return grid
 
 
 _WARM: set[tuple[str, bool]] = set()

@@ -13,9 +13,11 @@ from typing import Any
 
 import numpy as np
 
-from .assembly import output_times, run_cosim
-from .master import CosimResult
-from .settings import CosimSettings
+from rubcosim.orchestrator.assembly import run_cosim
+from rubcosim.orchestrator.master import CosimResult
+from rubcosim.orchestrator.settings import CosimSettings
+
+from .timegrid import output_times
 
 
 def impact_count(scenario: Any, result: CosimResult) -> int:
@@ -40,13 +42,13 @@ def nearest_differences(times: np.ndarray, reference: np.ndarray) -> np.ndarray:
 
 def compare(scenario: Any, settings: CosimSettings | None = None, fmu_dir: Path | None = None):
     """Run both and return ``(report, reference_run, cosim_result, grid_rows)``."""
-    from rubcosim.runner import run_scenario
+    from .runner import run_scenario
 
     settings = settings or scenario.cosim
     ref = run_scenario(scenario, engine="accurate")
     times, grid_rows, _ = output_times(scenario)
     record = list(scenario.outputs)
-    if "oscillator" in scenario.system.units:
+    if "oscillator" in scenario.graph.units:
         record.append("oscillator.impacts")
     co = run_cosim(scenario, settings, record=record, times=times, fmu_dir=fmu_dir)
     n = min(len(co.t), ref.result.t.size)

@@ -14,7 +14,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from functools import cached_property
 
-from rubcosim.components.registry import REGISTRY
+from .registry import REGISTRY
 
 
 class CouplingError(ValueError):
