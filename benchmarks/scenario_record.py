@@ -119,10 +119,10 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     sub = ap.add_subparsers(dest="cmd", required=True)
     r = sub.add_parser("record")
-    r.add_argument("--out", type=Path, default=ROOT / "benchmarks/results/scenario_record")
+    r.add_argument("--out", type=Path, default=ROOT / "benchmarks/results/scenario_record_7cb116f")
     r.add_argument("names", nargs="*", help="scenario names (default: all)")
     c = sub.add_parser("compare")
-    c.add_argument("--record", type=Path, default=ROOT / "benchmarks/results/scenario_record")
+    c.add_argument("--record", type=Path, default=ROOT / "benchmarks/results/scenario_record_7cb116f")
     c.add_argument("names", nargs="*")
     args = ap.parse_args(argv)
     if args.cmd == "record":
