@@ -7,8 +7,11 @@ saves every output on the scenario's output grid (plus event counts) to one
 engine, the largest difference relative to the recorded output's largest
 magnitude, and whether the impact counts agree.
 
-    python benchmarks/scenario_record.py record --out benchmarks/results/scenario_record
-    python benchmarks/scenario_record.py compare --record benchmarks/results/scenario_record
+    python benchmarks/scenario_record.py record --out DIR
+    python benchmarks/scenario_record.py compare [--record DIR] [names]
+
+``compare`` defaults to the record taken at 7cb116f, before the unit declarations,
+the model graph and the shared kernels (``benchmarks/results/scenario_record_7cb116f``).
 """
 
 from __future__ import annotations
@@ -24,6 +27,7 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
 RUNS = ("fast", "accurate", "cosim")
+BEFORE_REDESIGN = ROOT / "benchmarks/results/scenario_record_7cb116f"
 
 
 def _scenarios(names: list[str]) -> list[Path]:
@@ -119,10 +123,10 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     sub = ap.add_subparsers(dest="cmd", required=True)
     r = sub.add_parser("record")
-    r.add_argument("--out", type=Path, default=ROOT / "benchmarks/results/scenario_record_7cb116f")
+    r.add_argument("--out", type=Path, required=True)
     r.add_argument("names", nargs="*", help="scenario names (default: all)")
     c = sub.add_parser("compare")
-    c.add_argument("--record", type=Path, default=ROOT / "benchmarks/results/scenario_record_7cb116f")
+    c.add_argument("--record", type=Path, default=BEFORE_REDESIGN)
     c.add_argument("names", nargs="*")
     args = ap.parse_args(argv)
     if args.cmd == "record":
