@@ -20,6 +20,7 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Any
 
+from .hybrid import HybridKernels
 from .parameters import Param
 from .unit import Signal, Unit
 
@@ -114,7 +115,9 @@ class UnitType:
     clearance, an unbalance); the model's length scale is the largest.  ``clock(params)``:
     for the unit that drives the model, ``(forcing frequency, frequency scale)`` in
     rad/s: the forcing period is 2 pi over the first, the velocity scale the length
-    scale times the second (see :mod:`.graph`).
+    scale times the second (see :mod:`.graph`).  ``hybrid``: the kernels of a unit
+    type that is a whole nonsmooth model (:mod:`.hybrid`); the reference compiles
+    them, the unit class steps them.
     """
 
     unit_class: type[Unit]
@@ -128,6 +131,7 @@ class UnitType:
     mass_scale: str = ""
     length_scale: Callable[[Mapping[str, Any]], float] | None = None
     clock: Callable[[Mapping[str, Any]], tuple[float, float]] | None = None
+    hybrid: HybridKernels | None = None
 
     @property
     def role(self) -> str:
@@ -152,6 +156,9 @@ class UnitType:
     @property
     def outputs(self) -> tuple[Signal, ...]:
         return self.unit_class.outputs
+
+    def _example_params(self) -> dict[str, Any]:
+        return self.unit_class.example_params()
 
     def provided(self, name: str) -> Provided | None:
         return next((p for p in self.provides if p.name == name), None)
@@ -189,6 +196,12 @@ class UnitType:
         for k in self.kernels:
             if not callable(k):
                 fail(f"kernel {k!r} is not callable")
+        if self.hybrid is not None:
+            expected = (*self.hybrid.outputs, "impacts", "mode")
+            if tuple(s.name for s in self.outputs) != expected:
+                fail(f"the unit's outputs must be the hybrid kernels' {expected}")
+            if len(self.states) != len(self.hybrid.initial(self._example_params())[0]):
+                fail("the hybrid kernels' state does not match the declared states")
         if not self.fmu.identifier.isidentifier():
             fail(f"FMU identifier {self.fmu.identifier!r} is not an identifier")
 

@@ -17,6 +17,7 @@ from rubcosim.components.registry import REGISTRY
 from rubcosim.components.stator import damping_from_restitution, reduced_mass
 
 from . import system as S
+from .hybrid_dispatch import HYBRID_TYPES
 
 # Relative size of the rebound normal speed (to the system's velocity scale)
 # below which chattering is declared over and the contact becomes sustained.
@@ -69,6 +70,15 @@ def build_system(
     controller force; the bearing acts on the journal of a two-mass rotor.
     """
     units = model.units if isinstance(model, ModelGraph) else dict(model)
+    whole = [u for u in units.values() if u.declaration.hybrid is not None]
+    if whole:
+        extra = sorted(set(units) - {whole[0].role})
+        if extra:
+            raise ParameterError(
+                f"unit {extra[0]!r} cannot be combined with {whole[0].role}.type = "
+                f"{whole[0].type!r}, a whole model"
+            )
+        return _hybrid_system(whole[0], chatter_tol)
     if "oscillator" in units:
         extra = sorted(set(units) - {"oscillator"})
         if extra:
@@ -77,6 +87,37 @@ def build_system(
     if "rotor" not in units:
         raise ParameterError("the scenario needs a 'rotor' or an 'oscillator' unit")
     return _rotor_system(units, chatter_tol)
+
+
+def _hybrid_system(u: UnitNode, chatter_tol: float) -> System:
+    """A hybrid unit type's kernels as the system (:mod:`.hybrid_dispatch`)."""
+    declared = u.declaration
+    kernels = declared.hybrid
+    params = {**u.params, "chatter_tol": chatter_tol}
+    y0, mode0 = kernels.initial(params)
+    packed = kernels.parameters(params)  # no inputs: the unit is the whole model
+    p = np.zeros(max(S.N_P, packed.size))
+    p[: packed.size] = packed
+    ip = np.zeros(S.N_IP, dtype=np.int64)
+    ip[S.IP_FAMILY] = S.FAMILY_HYBRID + HYBRID_TYPES.index(declared)
+    ip[S.IP_NSTATE] = len(y0)
+    ip[S.IP_JOURNAL] = -1
+    ip[S.IP_CASING] = -1
+    scales = model_scales({u.role: u})
+    names = [f"{u.role}.{s.name}" for s in declared.states]
+    return System(
+        family=int(ip[S.IP_FAMILY]),
+        p=p,
+        ip=ip,
+        y0=np.array(y0, dtype=float),
+        mode0=int(mode0),
+        state_names=names,
+        state_scale=_state_scale({u.role: u}, names, scales.length, scales.velocity),
+        output_names=S.output_names(ip),
+        forcing_period=scales.forcing_period,
+        velocity_scale=scales.velocity,
+        units={u.role: u},
+    )
 
 
 def _oscillator_system(u: UnitNode, chatter_tol: float) -> System:

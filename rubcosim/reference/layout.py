@@ -8,8 +8,21 @@ Event kinds name what an event did (:data:`KIND_NAMES`).  Re-exported by
 
 from __future__ import annotations
 
+# Event kinds and the number of event slots are shared with the hybrid unit types.
+from rubcosim.components.hybrid import (  # noqa: F401
+    KIND_BREAK,
+    KIND_CONTACT_OFF,
+    KIND_CONTACT_ON,
+    KIND_IMPACT,
+    KIND_NAMES,
+    KIND_RELEASE,
+    KIND_SLIP,
+    N_EVENTS,
+)
+
 FAMILY_ROTOR = 0
 FAMILY_OSCILLATOR = 1
+FAMILY_HYBRID = 2  # hybrid unit type i (rubcosim.reference.hybrid_dispatch) is 2 + i
 
 # ip layout
 IP_FAMILY = 0
@@ -47,13 +60,4 @@ N_P = 32
 MODE_STUCK_UPPER = 1
 MODE_STUCK_LOWER = 2
 
-N_EVENTS = 4
 N_DELAYED = 4  # the controller feeds back the disc state (x, y, vx, vy)
-
-KIND_BREAK = 0
-KIND_IMPACT = 1
-KIND_RELEASE = 2
-KIND_SLIP = 3
-KIND_CONTACT_ON = 4
-KIND_CONTACT_OFF = 5
-KIND_NAMES = ("breakpoint", "impact", "release", "slip", "contact_on", "contact_off")

@@ -62,6 +62,14 @@ from rubcosim.components.stator import (
     sticking_friction,
 )
 
+from .hybrid_dispatch import (
+    hybrid_apply,
+    hybrid_events,
+    hybrid_output_names,
+    hybrid_outputs,
+    hybrid_rhs,
+)
+
 # The array layout is part of this module's interface (``system as S; S.P_M``), so
 # all of it is imported here, and every kernel below reads its slots by name.
 # ruff: noqa: F405
@@ -203,8 +211,10 @@ def rhs(t, y, yd, mode, p, ip, dy):
     """dy/dt for the system in ``mode``; ``yd`` is the delayed disc state."""
     if ip[IP_FAMILY] == FAMILY_ROTOR:
         rotor_rhs(t, y, yd, mode, p, ip, dy)
-    else:
+    elif ip[IP_FAMILY] == FAMILY_OSCILLATOR:
         oscillator_rhs(t, y, mode, p, ip, dy)
+    else:
+        hybrid_rhs(ip[IP_FAMILY] - FAMILY_HYBRID, t, y, mode, p, dy)
 
 
 @nb.njit(cache=True, inline="always")
@@ -245,8 +255,10 @@ def events(t, y, yd, mode, p, ip, g, dirs, rates):
         rates[k] = -1
     if ip[IP_FAMILY] == FAMILY_ROTOR:
         rotor_events(t, y, yd, mode, p, ip, g, dirs, rates)
-    else:
+    elif ip[IP_FAMILY] == FAMILY_OSCILLATOR:
         oscillator_events(t, y, mode, p, ip, g, dirs, rates)
+    else:
+        hybrid_events(ip[IP_FAMILY] - FAMILY_HYBRID, t, y, mode, p, g, dirs, rates)
 
 
 @nb.njit(cache=True)
@@ -306,31 +318,17 @@ def apply_event(k, t, y, yd, mode, p, ip):
     """
     if ip[IP_FAMILY] == FAMILY_ROTOR:
         return rotor_apply(k, t, y, yd, mode, p, ip)
-    return oscillator_apply(k, t, y, mode, p, ip)
-
-
-@nb.njit(cache=True)
-def n_outputs(ip: np.ndarray) -> int:
     if ip[IP_FAMILY] == FAMILY_OSCILLATOR:
-        return 3
-    n = 4
-    if ip[IP_JOURNAL] >= 0:
-        n += 4
-    if ip[IP_STATOR] != STATOR_NONE:
-        n += 3
-    if ip[IP_CASING] >= 0:
-        n += 4
-    if ip[IP_BEARING] != BEARING_NONE:
-        n += 2
-    if ip[IP_CONTROL] != CONTROL_NONE:
-        n += 2
-    return n
+        return oscillator_apply(k, t, y, mode, p, ip)
+    return hybrid_apply(ip[IP_FAMILY] - FAMILY_HYBRID, k, t, y, mode, p)
 
 
 def output_names(ip: np.ndarray) -> list[str]:
     """Names of the outputs written by :func:`outputs`, in the same order."""
     if ip[IP_FAMILY] == FAMILY_OSCILLATOR:
         return ["oscillator.x", "oscillator.v", "oscillator.contact"]
+    if ip[IP_FAMILY] >= FAMILY_HYBRID:
+        return hybrid_output_names(int(ip[IP_FAMILY]) - FAMILY_HYBRID)
     names = ["rotor.x", "rotor.y", "rotor.vx", "rotor.vy"]
     if ip[IP_JOURNAL] >= 0:
         names += ["rotor.journal_x", "rotor.journal_y", "rotor.journal_vx", "rotor.journal_vy"]
@@ -351,6 +349,9 @@ def outputs(t, y, yd, mode, p, ip, out):
     ``oscillator.contact`` are 0 free, 1 in contact or sliding, 2 sticking."""
     if ip[IP_FAMILY] == FAMILY_OSCILLATOR:
         oscillator_outputs(y, mode, p, ip, out)
+        return
+    if ip[IP_FAMILY] >= FAMILY_HYBRID:
+        hybrid_outputs(ip[IP_FAMILY] - FAMILY_HYBRID, t, y, mode, p, out)
         return
     for i in range(4):
         out[i] = y[i]

@@ -1,0 +1,173 @@
+"""Hybrid units: a unit type that is a whole nonsmooth model, written once as kernels.
+
+A hybrid unit type declares its physics as four compiled kernels over its
+own state ``y``, its discrete mode and its parameter array ``p`` (packed by
+``pack`` in the order it chooses):
+
+* ``rhs(t, y, mode, p, dy)``: the vector field in ``mode``;
+* ``events(t, y, mode, p, g, dirs, rates)``: event functions in up to
+  :data:`N_EVENTS` slots (the caller fills every slot with ``g = 1``,
+  ``dirs = 0``, ``rates = -1`` first); ``dirs[k]`` -1 falling, +1 rising, 2
+  either; ``rates[k]`` the slot holding g_k's time derivative, or -1;
+* ``apply(k, t, y, mode, p)``: the event map of slot ``k`` (changes ``y`` in
+  place), returning ``(new mode, event kind)`` (:data:`KIND_NAMES`);
+* ``outputs(t, y, mode, p, out)``: the outputs named by ``outputs``.
+
+Inputs (``inputs``, real signals of the unit class) reach the kernels through
+the end of ``p``: from slot ``input_base`` on, the step's start time, then
+value, first and second derivative of each input (:func:`input_value` reads
+them).  :class:`HybridUnit` writes them before every step; the reference,
+where the unit is the whole model, leaves them at zero.
+
+The monolithic reference compiles these kernels into its engines
+(:mod:`rubcosim.reference.hybrid_dispatch`); :class:`HybridUnit` steps the
+same kernels as a co-simulation unit (and so as an FMU).  The physics of such
+a unit type is therefore written exactly once.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from typing import Any, ClassVar
+
+import numpy as np
+
+from .jit import njit
+from .kernels import polynomial_at
+from .stepping import event, integrate
+from .unit import Unit
+
+N_EVENTS = 4
+KIND_BREAK, KIND_IMPACT, KIND_RELEASE, KIND_SLIP, KIND_CONTACT_ON, KIND_CONTACT_OFF = range(6)
+KIND_NAMES = ("breakpoint", "impact", "release", "slip", "contact_on", "contact_off")
+MAX_EVENTS_PER_STEP = 100_000
+
+
+@dataclass(frozen=True)
+class HybridKernels:
+    """The compiled physics of a hybrid unit type (see the module's docstring).
+
+    ``outputs`` names what the ``outputs`` kernel writes, in order; ``pack(params)``
+    gives the parameter array ``p`` (up to ``input_base``); ``initial(params)`` the
+    initial state and mode; ``inputs`` the inputs the kernels read.
+    """
+
+    rhs: Callable[..., None]
+    events: Callable[..., None]
+    apply: Callable[..., tuple[int, int]]
+    output: Callable[..., None]
+    outputs: tuple[str, ...]
+    pack: Callable[[Mapping[str, Any]], np.ndarray]
+    initial: Callable[[Mapping[str, Any]], tuple[np.ndarray, int]]
+    inputs: tuple[str, ...] = ()
+    input_base: int = 0
+
+    def parameters(self, params: Mapping[str, Any]) -> np.ndarray:
+        """``pack(params)`` with the input slots after it, zero."""
+        packed = self.pack(params)
+        p = np.zeros(self.input_base + 1 + 3 * len(self.inputs))
+        p[: packed.size] = packed
+        return p
+
+
+@njit
+def input_value(p: np.ndarray, base: int, i: int, t: float) -> float:
+    """Input ``i`` of a hybrid unit at time ``t`` (s): the polynomial over the current
+    step stored from ``p[base]`` on (step start, then value, d1, d2 per input)."""
+    j = base + 1 + 3 * i
+    return polynomial_at(p[j], p[j + 1], p[j + 2], t - p[base])
+
+
+def event_slots(
+    kernels: HybridKernels, t: float, y: np.ndarray, mode: int, p: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The event functions, their directions and rate slots of ``mode`` at (t, y)."""
+    g = np.ones(N_EVENTS)
+    dirs = np.zeros(N_EVENTS, dtype=np.int64)
+    rates = np.full(N_EVENTS, -1, dtype=np.int64)
+    kernels.events(t, y, mode, p, g, dirs, rates)
+    return g, dirs, rates
+
+
+class HybridUnit(Unit):
+    """A co-simulation unit stepping a hybrid unit type's kernels.
+
+    Inside a communication step the kernels' events are located (as terminal
+    events of the DOP853 integration) and their map applied, so every impact
+    and every change of mode happens at its own time, whatever the step.
+    Subclasses set ``kernels`` and the usual unit declarations.
+    """
+
+    kernels: ClassVar[HybridKernels]
+    feedthrough = False
+
+    def _initial_state(self) -> dict[str, Any]:
+        y0, mode0 = self.kernels.initial(self.params)
+        self._p = self.kernels.parameters(self.params)
+        return {"y": np.array(y0, dtype=float), "h": 0.0, "mode": int(mode0), "impacts": 0}
+
+    def _rhs(self, mode: int) -> Callable[[float, np.ndarray], np.ndarray]:
+        def rhs(t: float, y: np.ndarray) -> np.ndarray:
+            dy = np.empty(y.shape[0])
+            self.kernels.rhs(t, y, mode, self._p, dy)
+            return dy
+
+        return rhs
+
+    def _events(self, t: float, y: np.ndarray, mode: int) -> list[tuple[int, Any]]:
+        _, dirs, _ = event_slots(self.kernels, t, y, mode, self._p)
+        found = []
+        for k in range(N_EVENTS):
+            if dirs[k] == 0:
+                continue
+
+            def g(tt: float, yy: np.ndarray, k: int = k) -> float:
+                return float(event_slots(self.kernels, tt, yy, mode, self._p)[0][k])
+
+            found.append((k, event(g, 0.0 if dirs[k] == 2 else float(dirs[k]))))
+        return found
+
+    def _set_input_slots(self, t: float) -> None:
+        base = self.kernels.input_base
+        self._p[base] = t
+        for i, name in enumerate(self.kernels.inputs):
+            d1, d2 = self.du.get(name, (0.0, 0.0))
+            self._p[base + 1 + 3 * i : base + 4 + 3 * i] = (self.u[name], d1, d2)
+
+    def _advance(self, t: float, h: float) -> None:
+        q, st = self.params, self.state
+        t_end = t + h
+        self._set_input_slots(t)
+        for _ in range(MAX_EVENTS_PER_STEP):
+            if t >= t_end:
+                return
+            slots = self._events(t, st["y"], st["mode"])
+            seg = integrate(
+                self._rhs(st["mode"]),
+                t,
+                t_end,
+                st["y"],
+                q["rtol"],
+                q["atol"],
+                st["h"],
+                [e for _, e in slots],
+            )
+            t, st["y"], st["h"] = seg.t, seg.y, seg.h_next
+            if seg.event < 0:
+                return
+            y = np.array(st["y"])
+            mode, kind = self.kernels.apply(slots[seg.event][0], t, y, st["mode"], self._p)
+            st["y"], st["mode"] = y, int(mode)
+            if kind == KIND_IMPACT:
+                st["impacts"] += 1
+        raise RuntimeError(f"more than {MAX_EVENTS_PER_STEP} events in one step")
+
+    def _outputs(self) -> dict[str, float]:
+        st = self.state
+        self._set_input_slots(self.time)  # the outputs at the current time see its inputs
+        out = np.empty(len(self.kernels.outputs))
+        self.kernels.output(self.time, st["y"], st["mode"], self._p, out)
+        values = dict(zip(self.kernels.outputs, (float(v) for v in out), strict=True))
+        values.update(impacts=st["impacts"], mode=st["mode"])
+        return values
