@@ -17,6 +17,7 @@ from .parameters import Param
 from .rotor_unit import JEFFCOTT_ROTOR, TWO_MASS_ROTOR
 from .stator import reduced_mass
 from .stator_unit import CASING_STATOR, ELASTIC_STATOR, RIGID_STATOR
+from .two_dof_oscillator import TWO_DOF_IMPACT_OSCILLATOR
 from .unit import Unit
 
 
@@ -150,5 +151,6 @@ REGISTRY = Registry(
         LINEAR_BEARING,
         DELAYED_FEEDBACK,
         IMPACT_OSCILLATOR,
+        TWO_DOF_IMPACT_OSCILLATOR,
     )
 )

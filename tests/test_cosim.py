@@ -35,6 +35,7 @@ CASES = {
     "impact_duffing": (7.0, 1e-6, True),
     "impact_oscillator_linear": (8.0, 1e-6, True),
     "impact_oscillator_symmetric": (9.0, 1e-6, True),
+    "two_dof_impact_oscillator": (60.0, 1e-6, True),
 }
 
 

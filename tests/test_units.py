@@ -42,6 +42,10 @@ STIMULI = {
         {"forcing_amplitude": 1.0, "barrier": 0.4, "damping": 0.1},
         lambda t: {"force": 0.1 * math.sin(t)},
     ),
+    ("oscillator", "two_dof_impact"): (
+        {"forcing_amplitude": 1.0, "forcing_frequency": 0.3, "gap": 0.05, "restitution": 0.3},
+        lambda t: {"force": 0.2 * math.sin(2.0 * t)},
+    ),
 }
 
 
