@@ -1,0 +1,78 @@
+"""Fixed points of the stroboscopic map found from the samples, refined by Newton.
+
+Every sample's one-period displacement ``|P(y) - y|`` (in state scales, the
+largest component) is known from the mapping.  Near a fixed point of P it
+goes to zero whatever the fixed point's stability, so the cells where the
+smallest displacement of their samples is a local minimum (over the 3 x 3
+block of cells) and below one cell width are the candidates.  Newton's method
+on ``P(y) - y`` from each candidate's best sample (:func:`.floquet.floquet`,
+at the tight tolerance ``FLOQUET_RTOL``) refines it and gives the
+multipliers.  A fixed point with exactly one multiplier outside the unit
+circle is a *saddle* (its stable manifold is a basin boundary of a planar
+map); stable ones cross-check the periodic attractors.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from scipy.ndimage import minimum_filter
+
+from .cellmap import Grid
+from .errors import MapError
+from .floquet import FLOQUET_RTOL, floquet, floquet_report
+from .maps import StroboscopicMap
+
+MAX_CANDIDATES = 24  # Newton starts, smallest displacement first
+SAME_POINT = 1e-6  # state scales: Newton results this close are one fixed point
+NEWTON_TOL = 1e-10
+
+
+def fixed_point_candidates(
+    grid: Grid, points: np.ndarray, images: np.ndarray, scale: np.ndarray, samples: int
+) -> np.ndarray:
+    """Sample points (rows) from which to start Newton, smallest displacement first."""
+    with np.errstate(invalid="ignore"):
+        d = np.max(np.abs(images - points) / scale, axis=1)
+    d[~np.isfinite(d)] = np.inf
+    per_cell = d.reshape(grid.n_cells, samples)
+    best = np.argmin(per_cell, axis=1)
+    dmin = per_cell[np.arange(grid.n_cells), best]
+    field = dmin.reshape(grid.nv, grid.nx)
+    local = (field == minimum_filter(field, size=3, mode="nearest")).ravel()
+    width = max(grid.dx / scale[0], grid.dv / scale[1])
+    cand = np.flatnonzero(local & (dmin < width))
+    cand = cand[np.argsort(dmin[cand])][:MAX_CANDIDATES]
+    return points[cand * samples + best[cand]]
+
+
+def fixed_points(
+    smap: StroboscopicMap, grid: Grid, points: np.ndarray, images: np.ndarray, samples: int
+) -> list[dict[str, Any]]:
+    """The distinct fixed points of P in the region: state, Hsu-style cell (0-based
+    ``c = j nx + i``), impacts per period, multipliers and whether it is a saddle."""
+    tight = StroboscopicMap(smap.system, FLOQUET_RTOL, smap.max_events)
+    found: list[dict[str, Any]] = []
+    for y in fixed_point_candidates(grid, points, images, smap.scale, samples):
+        try:
+            f = floquet(tight, y, 1, tol=NEWTON_TOL)
+        except (MapError, np.linalg.LinAlgError):
+            continue  # grazing or a singular Newton step: no fixed point from here
+        cell = int(grid.cell_of(f.state[None, :])[0])
+        if f.residual > 1e3 * NEWTON_TOL or cell == grid.sink:
+            continue
+        if any(np.all(np.abs(f.state - p["state"]) / smap.scale <= SAME_POINT) for p in found):
+            continue
+        outside = int(np.sum(np.abs(f.multipliers) > 1.0))
+        found.append(
+            {
+                "state": f.state,
+                "cell": cell,
+                "impacts": f.impacts,
+                "outside_unit_circle": outside,
+                "saddle": outside == 1,
+                **floquet_report(f),
+            }
+        )
+    return found
