@@ -174,7 +174,11 @@ def pursuit_basins(
     attractor_of = np.full(grid.n_cells, -1)
     for k, a in enumerate(known):
         attractor_of[a.cells] = k
-    fps = fixed_points(smap, grid, points, images, samples)
+    where = (labels == LABEL_BOUNDARY) | (attractor_of >= 0)
+    fps = fixed_points(smap, grid, points, images, samples, where)
+    for p in fps:  # where it lies: a saddle on a basin boundary, or inside an attractor
+        p["on_boundary"] = bool(labels[p["cell"]] == LABEL_BOUNDARY)
+        p["in_attractor"] = int(attractor_of[p["cell"]])
     clock["saddles"] = time.perf_counter()
     total = points.shape[0]
     motions = []

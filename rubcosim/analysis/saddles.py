@@ -3,8 +3,9 @@
 Every sample's one-period displacement ``|P(y) - y|`` (in state scales, the
 largest component) is known from the mapping.  Near a fixed point of P it
 goes to zero whatever the fixed point's stability, so the cells where the
-smallest displacement of their samples is a local minimum (over the 3 x 3
-block of cells) and below one cell width are the candidates.  Newton's method
+smallest displacement of their samples is smallest (taken at least ``SPREAD``
+cells apart) and below ``WIDTHS`` cell widths are the candidates (a strongly
+unstable saddle moves its cell's samples by several widths).  Newton's method
 on ``P(y) - y`` from each candidate's best sample (:func:`.floquet.floquet`,
 at the tight tolerance ``FLOQUET_RTOL``) refines it and gives the
 multipliers.  A fixed point with exactly one multiplier outside the unit
@@ -17,46 +18,70 @@ from __future__ import annotations
 from typing import Any
 
 import numpy as np
-from scipy.ndimage import minimum_filter
 
 from .cellmap import Grid
 from .errors import MapError
 from .floquet import FLOQUET_RTOL, floquet, floquet_report
 from .maps import StroboscopicMap
 
-MAX_CANDIDATES = 24  # Newton starts, smallest displacement first
+MAX_CANDIDATES = 64  # Newton starts, smallest displacement first
+SPREAD = 1  # cells between Newton starts
+WIDTHS = 4.0  # candidate cells: smallest displacement below this many cell widths
 SAME_POINT = 1e-6  # state scales: Newton results this close are one fixed point
 NEWTON_TOL = 1e-10
+NEWTON_ITER = 10  # from a start this close Newton converges in a few; else give up
 
 
 def fixed_point_candidates(
-    grid: Grid, points: np.ndarray, images: np.ndarray, scale: np.ndarray, samples: int
+    grid: Grid,
+    points: np.ndarray,
+    images: np.ndarray,
+    scale: np.ndarray,
+    samples: int,
+    where: np.ndarray | None = None,
 ) -> np.ndarray:
-    """Sample points (rows) from which to start Newton, smallest displacement first."""
+    """Sample points (rows) from which to start Newton, smallest displacement first,
+    in the cells where ``where`` (bool per cell) holds, default all."""
     with np.errstate(invalid="ignore"):
         d = np.max(np.abs(images - points) / scale, axis=1)
     d[~np.isfinite(d)] = np.inf
     per_cell = d.reshape(grid.n_cells, samples)
     best = np.argmin(per_cell, axis=1)
     dmin = per_cell[np.arange(grid.n_cells), best]
-    field = dmin.reshape(grid.nv, grid.nx)
-    local = (field == minimum_filter(field, size=3, mode="nearest")).ravel()
-    width = max(grid.dx / scale[0], grid.dv / scale[1])
-    cand = np.flatnonzero(local & (dmin < width))
-    cand = cand[np.argsort(dmin[cand])][:MAX_CANDIDATES]
+    width = WIDTHS * max(grid.dx / scale[0], grid.dv / scale[1])
+    # smallest first, at least SPREAD cells apart: a saddle's cell need not be a local
+    # minimum (its stable direction is a valley of small displacements)
+    ok = dmin < width if where is None else (dmin < width) & where
+    order = np.flatnonzero(ok)
+    order = order[np.argsort(dmin[order], kind="stable")]
+    kept: list[int] = []
+    for c in order:
+        i, j = c % grid.nx, c // grid.nx
+        if all(max(abs(i - k % grid.nx), abs(j - k // grid.nx)) > SPREAD for k in kept):
+            kept.append(int(c))
+            if len(kept) == MAX_CANDIDATES:
+                break
+    cand = np.array(kept, dtype=np.int64)
     return points[cand * samples + best[cand]]
 
 
 def fixed_points(
-    smap: StroboscopicMap, grid: Grid, points: np.ndarray, images: np.ndarray, samples: int
+    smap: StroboscopicMap,
+    grid: Grid,
+    points: np.ndarray,
+    images: np.ndarray,
+    samples: int,
+    where: np.ndarray | None = None,
 ) -> list[dict[str, Any]]:
-    """The distinct fixed points of P in the region: state, Hsu-style cell (0-based
-    ``c = j nx + i``), impacts per period, multipliers and whether it is a saddle."""
+    """The distinct fixed points of P found from the cells where ``where`` holds (the
+    boundary and attractor cells: a saddle on a basin boundary lies in a mixed cell):
+    state, cell (0-based ``c = j nx + i``), impacts per period, multipliers and whether
+    it is a saddle."""
     tight = StroboscopicMap(smap.system, FLOQUET_RTOL, smap.max_events)
     found: list[dict[str, Any]] = []
-    for y in fixed_point_candidates(grid, points, images, smap.scale, samples):
+    for y in fixed_point_candidates(grid, points, images, smap.scale, samples, where):
         try:
-            f = floquet(tight, y, 1, tol=NEWTON_TOL)
+            f = floquet(tight, y, 1, tol=NEWTON_TOL, max_iter=NEWTON_ITER)
         except (MapError, np.linalg.LinAlgError):
             continue  # grazing or a singular Newton step: no fixed point from here
         cell = int(grid.cell_of(f.state[None, :])[0])
