@@ -170,11 +170,11 @@ def _analysis_parsers(sub: Any) -> None:
     bs.add_argument("--seed", type=int, default=0, help="seed of the sample points")
     bs.add_argument(
         "--method",
-        choices=BASIN_METHODS,
         default="gcm",
-        help="gcm: generalized cell mapping on the one-period map; pursuit: every sample "
-        "followed to a verified attractor, saddles by Newton (for maps close to the "
-        "identity, e.g. scenarios/feng_yang_attractors.toml)",
+        help=f"{' or '.join(BASIN_METHODS)}; gcm: generalized cell mapping on the "
+        "one-period map; pursuit: every sample followed to a verified attractor, "
+        "saddles by Newton (for maps close to the identity, e.g. "
+        "scenarios/feng_yang_attractors.toml)",
     )
 
 
@@ -229,6 +229,8 @@ def cmd_basins(args: argparse.Namespace) -> int:
 
     scenario = api.load(args.scenario, args.set)
     Grid.parse(args.grid, args.region)  # bad input is refused before --out is looked at
+    if args.method not in BASIN_METHODS:
+        raise AnalysisError(f"--method {args.method!r}: one of {', '.join(BASIN_METHODS)}")
     out = check_output_dir(args.out)
     ckpt = checkpoint_dir(out)
     basins = api.basins(
