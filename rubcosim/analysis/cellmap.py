@@ -182,6 +182,8 @@ class Basins:
     # the sink; only the pursuit method has it
     shares: np.ndarray | None = None
     fixed_points: list[dict[str, Any]] = field(default_factory=list)  # Newton's (pursuit)
+    # (n_cells, samples): attractor of each sample, n_attractors for the sink (pursuit)
+    fates: np.ndarray | None = None
 
     @property
     def n_attractors(self) -> int:

@@ -175,6 +175,7 @@ def write_basins(basins: Basins, tmp: Path, scenario_name: str, info: dict[str, 
         grid=np.array([g.nx, g.nv]),
         region=np.array([g.x0, g.x1, g.v0, g.v1]),
         saddle_cells=np.concatenate(basins.saddles) if basins.saddles else np.zeros(0, int),
+        **({} if basins.shares is None else {"shares": basins.shares, "fates": basins.fates}),
     )
     counts = basins.counts()
     attractors = []

@@ -211,5 +211,6 @@ def pursuit_basins(
     basins.method = "pursuit"
     basins.shares = shares
     basins.fixed_points = fps
+    basins.fates = label.reshape(grid.n_cells, samples).astype(np.int16)
     basins.info = {"pursuit": stats}
     return basins

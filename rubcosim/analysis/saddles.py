@@ -8,7 +8,11 @@ cells apart) and below ``WIDTHS`` cell widths are the candidates (a strongly
 unstable saddle moves its cell's samples by several widths).  Newton's method
 on ``P(y) - y`` from each candidate's best sample (:func:`.floquet.floquet`,
 at the tight tolerance ``FLOQUET_RTOL``) refines it and gives the
-multipliers.  A fixed point with exactly one multiplier outside the unit
+multipliers.  Newton also starts from every corner of the cell grid around
+which the cells' mean displacement winds once (a nonzero index: a fixed
+point inside, by degree theory, where the map is continuous; a grazing curve
+can fake one, and Newton then finds nothing).  A fixed point with exactly
+one multiplier outside the unit
 circle is a *saddle* (its stable manifold is a basin boundary of a planar
 map); stable ones cross-check the periodic attractors.
 """
@@ -30,6 +34,27 @@ WIDTHS = 4.0  # candidate cells: smallest displacement below this many cell widt
 SAME_POINT = 1e-6  # state scales: Newton results this close are one fixed point
 NEWTON_TOL = 1e-10
 NEWTON_ITER = 10  # from a start this close Newton converges in a few; else give up
+
+
+def winding_starts(
+    grid: Grid, points: np.ndarray, images: np.ndarray, scale: np.ndarray, samples: int
+) -> np.ndarray:
+    """Corners of the cell grid around which the mean displacement field of the cells
+    winds (index != 0: a fixed point inside the 2 x 2 block of cell centres, whatever
+    its stability, when the field is continuous there), most compact block first."""
+    with np.errstate(invalid="ignore"):
+        disp = np.nanmean(((images - points) / scale).reshape(grid.n_cells, samples, 2), axis=1)
+    ang = np.arctan2(disp[:, 1], disp[:, 0]).reshape(grid.nv, grid.nx)
+    corners = [ang[:-1, :-1], ang[:-1, 1:], ang[1:, 1:], ang[1:, :-1]]
+    turn = np.zeros_like(corners[0])
+    for a, b in zip(corners, corners[1:] + corners[:1], strict=True):
+        turn += np.angle(np.exp(1j * (b - a)))  # each step wrapped to (-pi, pi]
+    with np.errstate(invalid="ignore"):
+        j, i = np.nonzero(np.abs(turn) > np.pi)  # a whole turn: index +1 or -1
+    size = np.hypot(disp[:, 0], disp[:, 1]).reshape(grid.nv, grid.nx)
+    order = np.argsort(size[j, i] + size[j + 1, i + 1], kind="stable")
+    j, i = j[order], i[order]
+    return np.column_stack((grid.x0 + (i + 1) * grid.dx, grid.v0 + (j + 1) * grid.dv))
 
 
 def fixed_point_candidates(
@@ -79,7 +104,9 @@ def fixed_points(
     it is a saddle."""
     tight = StroboscopicMap(smap.system, FLOQUET_RTOL, smap.max_events)
     found: list[dict[str, Any]] = []
-    for y in fixed_point_candidates(grid, points, images, smap.scale, samples, where):
+    wind = winding_starts(grid, points, images, smap.scale, samples)[:MAX_CANDIDATES]
+    small = fixed_point_candidates(grid, points, images, smap.scale, samples, where)
+    for y in np.concatenate((wind, small)):
         try:
             f = floquet(tight, y, 1, tol=NEWTON_TOL, max_iter=NEWTON_ITER)
         except (MapError, np.linalg.LinAlgError):
