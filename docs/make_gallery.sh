@@ -37,9 +37,6 @@ $R run scenarios/jeffcott_elastic_casing.toml --out "$OUT/elastic_casing"
 #    basins by generalized cell mapping, 200 x 200 cells x 16 samples
 $R basins scenarios/impact_duffing.toml --grid 200x200 --samples 16 --region=-3:1,-6:6 \
     $Q --out "$OUT/duffing_basins"
-#    Feng & Yang's case: four attractors and the saddles, by pursuit of every sample
-$R basins scenarios/feng_yang_attractors.toml --method pursuit --grid 200x200 --samples 16 \
-    --region=-2:1,-2:2 $Q --out "$OUT/feng_yang_basins"
 
 # 8. Chaos control by delayed feedback: the same rotor without control (chaotic), then
 #    with velocity feedback switched on after 100 periods (period 1, force dies away)
@@ -57,7 +54,6 @@ cp "$OUT/rigid_offset/bifurcation.png" "$G/rigid_offset_sweep.png"
 cp "$OUT/oilfilm_rub/orbit.png" "$G/oilfilm_rub_orbit.png"
 cp "$OUT/elastic_casing/timeseries.png" "$G/elastic_casing.png"
 cp "$OUT/duffing_basins/basins.png" "$G/duffing_basins.png"
-cp "$OUT/feng_yang_basins/basins.png" "$G/feng_yang_basins.png"
 cp "$OUT/chaos_control/timeseries.png" "$G/chaos_control.png"
 cp "$OUT/chaos_uncontrolled/poincare.png" "$G/chaos_poincare_without_control.png"
 cp "$OUT/chaos_control/poincare.png" "$G/chaos_poincare_with_control.png"
