@@ -86,3 +86,29 @@ def test_pursuit_finds_feng_yangs_four_attractors_and_two_saddles(tmp_path, caps
         assert main([*args, *bad, "--out", str(tmp_path / "bad")]) == 2, bad
         err = capsys.readouterr().err
         assert msg in err and len(err.strip().splitlines()) <= 3, (bad, err)
+
+
+def test_pursuit_agrees_with_cell_mapping_on_two_well_separated_attractors():
+    import rubcosim as rc
+    from rubcosim.analysis.errors import AnalysisError
+
+    duffing = SCENARIO.parent / "impact_duffing.toml"
+    two_well = ['oscillator.stop="none"', "oscillator.forcing_amplitude=2.0"]
+    sc = rc.load(duffing, two_well)
+    args = ((30, 30), 4, (-2.0, 4.0, -4.0, 4.0))
+    gcm = rc.basins(sc, *args, workers=1)
+    pur = rc.basins(sc, *args, workers=1, method="pursuit")
+    assert gcm.n_attractors == pur.n_attractors == 2 and pur.info["method"] == "pursuit"
+    for m in pur.motions:  # the same two 1-0 orbits (found by direct simulation)
+        assert m["label"] == "1-0"
+        found = [
+            np.allclose(m["poincare_points"][0], g["poincare_points"][0], atol=1e-3)
+            for g in gcm.motions
+        ]
+        assert sum(found) == 1
+    # a cell the graph puts in one basin has that attractor's samples, or the sink's
+    for k in range(2):
+        cells = pur.labels == k
+        assert np.all(pur.shares[cells, k] + pur.shares[cells, -1] == pytest.approx(1.0))
+    with pytest.raises(AnalysisError, match="--method"):
+        rc.basins(sc, *args, method="hsu")
