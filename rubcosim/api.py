@@ -184,24 +184,34 @@ def basins(
     scheduler: str | None = None,
     checkpoint_dir: str | Path | None = None,
     progress: bool = False,
+    method: str = "gcm",
 ) -> Basins:
     """Basins of attraction by generalized cell mapping on the stroboscopic section of a
     single-DOF scenario: ``grid = (nx, nv)`` cells over ``region = (x0, x1, v0, v1)``
     (the state's units, e.g. m and m/s), ``samples`` random points per cell from
-    ``seed``.  ``result.info`` holds the wall time (s)."""
+    ``seed``.  ``method``: ``"gcm"``, generalized cell mapping on the one-period map
+    (:mod:`rubcosim.analysis.cellmap`), or ``"pursuit"``, every sample followed to a
+    verified attractor, with the saddles by Newton (:mod:`rubcosim.analysis.pursuit`;
+    needed where the map is close to the identity, as in Feng & Yang's case).
+    ``result.info`` holds the wall time (s)."""
     import time
 
-    from .analysis.cellmap import CELL_MAP_RTOL, Grid, cell_mapping
+    from .analysis.cellmap import BASIN_METHODS, CELL_MAP_RTOL, Grid, cell_mapping
+    from .analysis.errors import AnalysisError
     from .analysis.maps import StroboscopicMap
+    from .analysis.pursuit import pursuit_basins
 
+    if method not in BASIN_METHODS:
+        raise AnalysisError(f"--method {method!r}: one of {', '.join(BASIN_METHODS)}")
     sc = _scenario(scenario)
     cells = Grid.parse(grid, region)
     smap = StroboscopicMap(sc.system, _rtol(rtol, CELL_MAP_RTOL))
     t0 = time.perf_counter()
-    result = cell_mapping(
-        smap, cells, samples, seed, workers, scheduler, checkpoint_dir, progress=progress
-    )
+    run = pursuit_basins if method == "pursuit" else cell_mapping
+    result = run(smap, cells, samples, seed, workers, scheduler, checkpoint_dir, progress=progress)
     result.info = {
+        **result.info,
+        "method": method,
         "parameters": sc.parameters,
         "state_names": sc.system.state_names,
         "rtol": smap.rtol,

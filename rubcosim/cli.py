@@ -14,6 +14,7 @@ from rubcosim.orchestrator.settings import BACKENDS
 from rubcosim.reference.simulate import ENGINES
 
 from . import api
+from .analysis.cellmap import BASIN_METHODS
 from .analysis.errors import AnalysisError
 from .analysis.sweep import DIRECTIONS
 from .scenario import ScenarioError
@@ -167,6 +168,14 @@ def _analysis_parsers(sub: Any) -> None:
         "--region", required=True, metavar="X0:X1,V0:V1", help="the section's region in (x, x')"
     )
     bs.add_argument("--seed", type=int, default=0, help="seed of the sample points")
+    bs.add_argument(
+        "--method",
+        default="gcm",
+        help=f"{' or '.join(BASIN_METHODS)}; gcm: generalized cell mapping on the "
+        "one-period map; pursuit: every sample followed to a verified attractor, "
+        "saddles by Newton (for maps close to the identity, e.g. "
+        "scenarios/feng_yang_attractors.toml)",
+    )
 
 
 def cmd_sweep(args: argparse.Namespace) -> int:
@@ -216,9 +225,12 @@ def cmd_sweep(args: argparse.Namespace) -> int:
 def cmd_basins(args: argparse.Namespace) -> int:
     from .analysis.cellmap import Grid
     from .analysis.outputs import checkpoint_dir, write_basins
+    from .analysis.published import basins_summary
 
     scenario = api.load(args.scenario, args.set)
     Grid.parse(args.grid, args.region)  # bad input is refused before --out is looked at
+    if args.method not in BASIN_METHODS:
+        raise AnalysisError(f"--method {args.method!r}: one of {', '.join(BASIN_METHODS)}")
     out = check_output_dir(args.out)
     ckpt = checkpoint_dir(out)
     basins = api.basins(
@@ -232,6 +244,7 @@ def cmd_basins(args: argparse.Namespace) -> int:
         scheduler=args.scheduler,
         checkpoint_dir=ckpt,
         progress=not args.no_progress,
+        method=args.method,
     )
     write_directory(out, lambda tmp: write_basins(basins, tmp, scenario.name, basins.info))
     shutil.rmtree(ckpt, ignore_errors=True)
@@ -242,6 +255,8 @@ def cmd_basins(args: argparse.Namespace) -> int:
         f"{c['basins']}, boundary {c['boundary']}, escape {c['escape']}; "
         f"{basins.info['wall_time_s']:.1f} s -> {out}"
     )
+    for line in basins_summary(basins, scenario.name):
+        print(line)
     return 0
 
 

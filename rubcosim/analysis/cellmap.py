@@ -52,6 +52,7 @@ DEFAULT_CHUNK = 2000  # cells per task
 CELL_MAP_RTOL = 1e-7  # the map's tolerance: cells are far coarser than this
 LABEL_BOUNDARY = -2
 LABEL_ESCAPE = -1
+BASIN_METHODS = ("gcm", "pursuit")  # generalized cell mapping; .pursuit
 MERGE_TOL = 1e-3  # state scales: simulated motions this close are the same attractor
 
 
@@ -176,6 +177,13 @@ class Basins:
     motions: list[dict[str, Any]] = field(default_factory=list)
     # what report.json states besides: parameters, state names, rtol, wall time (s)
     info: dict[str, Any] = field(default_factory=dict)
+    method: str = "gcm"  # "gcm": generalized cell mapping; "pursuit": see .pursuit
+    # per cell, the share of its samples going to each attractor and (last column) to
+    # the sink; only the pursuit method has it
+    shares: np.ndarray | None = None
+    fixed_points: list[dict[str, Any]] = field(default_factory=list)  # Newton's (pursuit)
+    # (n_cells, samples): attractor of each sample, n_attractors for the sink (pursuit)
+    fates: np.ndarray | None = None
 
     @property
     def n_attractors(self) -> int:
@@ -300,6 +308,19 @@ def _motion(smap: StroboscopicMap, grid: Grid, graph: csr_matrix, cells: np.ndar
     }
 
 
+def check_inputs(smap: StroboscopicMap, samples: int, seed: int) -> None:
+    """One-line errors naming the flag: a 2-D section, ``--samples`` >= 1, ``--seed`` >= 0."""
+    if smap.n_state != 2:
+        raise MapError(
+            f"cell mapping works on a 2-D section (x, x'); this system's state has "
+            f"{smap.n_state} components ({', '.join(smap.system.state_names)})"
+        )
+    if not (isinstance(samples, int) and samples >= 1):
+        raise AnalysisError(f"--samples = {samples!r} must be an integer >= 1")
+    if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
+        raise AnalysisError(f"--seed = {seed!r} must be an integer >= 0")
+
+
 def cell_mapping(
     smap: StroboscopicMap,
     grid: Grid,
@@ -312,15 +333,7 @@ def cell_mapping(
     progress: bool = False,
 ) -> Basins:
     """Map every cell's samples (in parallel tasks, checkpointed) and analyse the graph."""
-    if smap.n_state != 2:
-        raise MapError(
-            f"cell mapping works on a 2-D section (x, x'); this system's state has "
-            f"{smap.n_state} components ({', '.join(smap.system.state_names)})"
-        )
-    if not (isinstance(samples, int) and samples >= 1):
-        raise AnalysisError(f"--samples = {samples!r} must be an integer >= 1")
-    if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
-        raise AnalysisError(f"--seed = {seed!r} must be an integer >= 0")
+    check_inputs(smap, samples, seed)
     starts = list(range(0, grid.n_cells, chunk))
     tasks = [
         (f"cells_{a:09d}", (smap, grid, a, min(a + chunk, grid.n_cells), samples, seed))

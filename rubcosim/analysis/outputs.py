@@ -10,6 +10,7 @@ import numpy as np
 
 from .cellmap import LABEL_BOUNDARY, LABEL_ESCAPE, Basins
 from .motion import DEFAULT_TOL
+from .published import compare, hsu_numbers
 from .sweep import SweepResult
 
 
@@ -174,6 +175,7 @@ def write_basins(basins: Basins, tmp: Path, scenario_name: str, info: dict[str, 
         grid=np.array([g.nx, g.nv]),
         region=np.array([g.x0, g.x1, g.v0, g.v1]),
         saddle_cells=np.concatenate(basins.saddles) if basins.saddles else np.zeros(0, int),
+        **({} if basins.shares is None else {"shares": basins.shares, "fates": basins.fates}),
     )
     counts = basins.counts()
     attractors = []
@@ -183,6 +185,7 @@ def write_basins(basins: Basins, tmp: Path, scenario_name: str, info: dict[str, 
             {
                 "id": k,
                 "cells": cells.tolist(),
+                "hsu_cells": hsu_numbers(g, cells),
                 "chain_period": basins.chain_periods[k],
                 "basin_cells": counts["basins"][k],
                 **basins.motions[k],
@@ -208,10 +211,38 @@ def write_basins(basins: Basins, tmp: Path, scenario_name: str, info: dict[str, 
             "saddles": [
                 {"cells": s.tolist(), "centres": g.centres(s).tolist()} for s in basins.saddles
             ],
+            **_pursuit_report(basins, scenario_name),
             **info,
         },
     )
     _plot_basins(basins, tmp / "basins.png", info.get("state_names", ["x", "x'"]))
+
+
+def _pursuit_report(basins: Basins, scenario_name: str) -> dict[str, Any]:
+    """What the pursuit method adds: the fixed points (Newton), the samples' shares and
+    the comparison with a published structure of this scenario."""
+    if basins.shares is None:
+        return {}
+    g = basins.grid
+    total = g.n_cells * basins.samples
+    sink = basins.shares[:, -1]
+    out: dict[str, Any] = {
+        "fixed_points": [
+            {**p, "state": np.asarray(p["state"]).tolist(), "hsu_cell": p["cell"] + 1}
+            for p in basins.fixed_points
+        ],
+        "samples": {
+            "total": total,
+            "per_attractor": [m["samples"] for m in basins.motions],
+            "fraction_per_attractor": [m["sample_fraction"] for m in basins.motions],
+            "sink_fraction": float(sink.sum() * basins.samples / total),
+        },
+        "cells_partly_to_the_sink": int(np.sum((sink > 0) & (sink < 1))),
+    }
+    cmp = compare(basins, scenario_name)
+    if cmp is not None:
+        out["published"] = cmp
+    return out
 
 
 def _plot_basins(basins: Basins, path: Path, names: list[str]) -> None:
@@ -254,9 +285,16 @@ def _plot_basins(basins: Basins, path: Path, names: list[str]) -> None:
                 ms=8,
                 label=f"attractor {a}: {basins.motions[a]['label']}",
             )
+    sec = [np.asarray(m.get("section_points", [])) for m in basins.motions]
+    for a, pts in enumerate(sec):  # a non-periodic attractor: its section points
+        if pts.size:
+            ax.plot(pts[:, 0], pts[:, 1], ".", ms=1.5, color=plt.cm.Set1(a % 9))
+    fps = [p for p in basins.fixed_points if p.get("saddle")]
     for s in basins.saddles:
         c = g.centres(s)
-        ax.plot(c[:, 0], c[:, 1], "x", color="red", ms=4)
+        ax.plot(c[:, 0], c[:, 1], "x", color="red", ms=4 if not fps else 9, mew=2)
+    for p in fps:
+        ax.annotate(f"saddle {p['cell'] + 1}", p["state"], fontsize=7, color="red")
     if basins.saddles:
         ax.plot([], [], "x", color="red", label="saddle cells")
     ax.set_xlabel(names[0])

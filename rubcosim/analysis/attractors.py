@@ -1,0 +1,186 @@
+"""Attractors found and verified by direct simulation, and the samples' pursuit to them.
+
+An attractor is found by iterating the stroboscopic map from a point for
+``SETTLE`` periods and classifying the next ``KEEP`` points with
+:func:`.motion.classify` (n-m, or not periodic).  Its *verified
+neighbourhood* is a set of cells from which direct simulation goes to it:
+
+- a periodic attractor (period n): the cells of its n points and their
+  neighbours within ``NEAR_RADIUS`` cells, each kept only when the simulated
+  orbit from the cell's centre converges to the attractor (its points within
+  ``MATCH_TOL`` state scales);
+- a motion that is not periodic (chaotic, or quasi-periodic: telling those
+  apart needs the largest Lyapunov exponent, not computed here): the cells its
+  orbit visits in ``CHAOS_KEEP`` periods.
+
+A point is *pursued* by mapping it ``PURSUE_STEP`` periods at a time (the
+compiled multi-period map, many points per call) until it enters a verified
+neighbourhood; one that has not after ``PURSUE_MAX`` periods is simulated and
+classified, which finds a new attractor or a known one.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from .cellmap import Grid, same_motion
+from .maps import StroboscopicMap
+from .motion import classify
+
+SETTLE = 600  # periods before classifying: multipliers of modulus 0.91 shrink by 1e-25
+KEEP = 64  # periods classified
+CLASSIFY_TOL = 1e-5  # state scales: a settled periodic orbit repeats far closer
+MATCH_TOL = 1e-3  # state scales: the same periodic attractor
+NEAR_RADIUS = 1  # cells around a periodic attractor's points tried for its neighbourhood
+CHAOS_KEEP = 2000  # periods of a non-periodic attractor whose cells are its neighbourhood
+PURSUE_STEP = 20  # periods per pursuit call
+PURSUE_MAX = 600  # periods pursued before simulating and classifying
+
+
+@dataclass
+class Attractor:
+    """A verified attractor: its motion (``label`` n-m or not periodic, ``period``,
+    ``impacts``, ``poincare_points``), the cells it occupies and its neighbourhood."""
+
+    motion: dict[str, Any]
+    points: np.ndarray  # points on the attractor (the n points, or CHAOS_KEEP of them)
+    cells: np.ndarray  # cell numbers of those points (the sink dropped)
+    near: np.ndarray  # bool per cell: the verified neighbourhood
+
+    @property
+    def periodic(self) -> bool:
+        return bool(self.motion.get("period"))
+
+
+def _motion(smap: StroboscopicMap, start: np.ndarray) -> tuple[dict[str, Any], Any]:
+    orbit = smap.orbit(start, skip=SETTLE, keep=KEEP)
+    if not orbit.ok:
+        return {"label": "unknown", "message": orbit.message, "start": start.tolist()}, orbit
+    m = classify(orbit.points, orbit.impacts, smap.scale, tol=CLASSIFY_TOL)
+    n = m.period or orbit.points.shape[0]
+    motion = {
+        "label": m.label,
+        "period": m.period,
+        "impacts": m.impacts,
+        "poincare_points": orbit.points[-n:].tolist(),
+        "start": start.tolist(),
+        "periodic": m.periodic,
+        "settle_periods": SETTLE,
+    }
+    return motion, orbit
+
+
+def _converges_to(
+    smap: StroboscopicMap, starts: np.ndarray, points: np.ndarray, n: int
+) -> np.ndarray:
+    """Whether the orbit from each start is on the n-periodic ``points`` after
+    ``SETTLE`` periods (one compiled call for all starts)."""
+    ends, _, _, status = smap.map(starts, periods=SETTLE)
+    ok = np.zeros(starts.shape[0], dtype=bool)
+    if status.size == 0:
+        return ok
+    d = np.abs(ends[:, None, :] - points[None, :, :]) / smap.scale
+    with np.errstate(invalid="ignore"):
+        ok = (status == 0) & np.any(np.all(d <= MATCH_TOL, axis=2), axis=1)
+    return ok
+
+
+def _neighbour_cells(grid: Grid, cells: np.ndarray, radius: int) -> np.ndarray:
+    i, j = cells % grid.nx, cells // grid.nx
+    di, dj = np.meshgrid(np.arange(-radius, radius + 1), np.arange(-radius, radius + 1))
+    ii = (i[:, None] + di.ravel()[None, :]).ravel()
+    jj = (j[:, None] + dj.ravel()[None, :]).ravel()
+    keep = (ii >= 0) & (ii < grid.nx) & (jj >= 0) & (jj < grid.nv)
+    return np.unique(jj[keep] * grid.nx + ii[keep])
+
+
+def new_attractor(
+    smap: StroboscopicMap, grid: Grid, motion: dict[str, Any], orbit: Any
+) -> Attractor:
+    """Build and verify the neighbourhood of a newly found attractor."""
+    near = np.zeros(grid.n_cells, dtype=bool)
+    if motion["periodic"]:
+        pts = np.asarray(motion["poincare_points"])
+        own = grid.cell_of(pts)
+        own = own[own != grid.sink]
+        tried = _neighbour_cells(grid, own, NEAR_RADIUS)
+        good = _converges_to(smap, grid.centres(tried), pts, motion["period"])
+        near[tried[good]] = True
+        near[own] = True  # the attractor's own cells (its points lie in them)
+    else:
+        more = smap.orbit(orbit.final_state, keep=CHAOS_KEEP)
+        pts = more.points if more.ok else orbit.points
+        own = np.unique(grid.cell_of(pts))
+        own = own[own != grid.sink]
+        near[own] = True
+        motion["section_points"] = pts[-256:].tolist()
+        motion["cells_visited"] = int(own.size)
+        motion["lyapunov"] = "not computed (issue 13 part 3)"
+    return Attractor(motion, pts, np.unique(own), near)
+
+
+def match(smap: StroboscopicMap, grid: Grid, motion: dict[str, Any], known: list[Attractor]) -> int:
+    """Index of the known attractor the simulated ``motion`` is on, else -1."""
+    for k, a in enumerate(known):
+        if a.periodic and same_motion(a.motion, motion, smap.scale, MATCH_TOL):
+            return k
+        if not a.periodic and not motion.get("periodic"):
+            cells = grid.cell_of(np.asarray(motion["poincare_points"]))
+            if np.any(a.near[cells[cells != grid.sink]]):
+                return k
+    return -1
+
+
+def identify(smap: StroboscopicMap, grid: Grid, start: np.ndarray, known: list[Attractor]) -> int:
+    """Simulate from ``start``: the index of the attractor it settles on, appending a
+    new verified one to ``known`` when needed; -1 when the run fails."""
+    motion, orbit = _motion(smap, start)
+    if motion["label"] == "unknown":
+        return -1
+    k = match(smap, grid, motion, known)
+    if k >= 0:
+        return k
+    known.append(new_attractor(smap, grid, motion, orbit))
+    return len(known) - 1
+
+
+def in_neighbourhood(grid: Grid, states: np.ndarray, known: list[Attractor]) -> np.ndarray:
+    """Per state: the first attractor whose verified neighbourhood holds its cell, else -1."""
+    cells = grid.cell_of(states)
+    out = np.full(states.shape[0], -1, dtype=np.int64)
+    inside = cells != grid.sink
+    for k in range(len(known) - 1, -1, -1):
+        hit = np.zeros_like(inside)
+        hit[inside] = known[k].near[cells[inside]]
+        out[hit] = k
+    return out
+
+
+def pursue(
+    smap: StroboscopicMap, grid: Grid, starts: np.ndarray, known: list[Attractor]
+) -> tuple[np.ndarray, int]:
+    """Where each start goes: its attractor index (-1: the run failed), found by
+    mapping all of them ``PURSUE_STEP`` periods at a time until each is in a verified
+    neighbourhood, simulating and classifying those that are not after ``PURSUE_MAX``
+    (which may add attractors to ``known``).  Also returns the periods mapped."""
+    fate = in_neighbourhood(grid, starts, known)
+    todo = np.flatnonzero(fate < 0)
+    y = starts[todo].copy()
+    mapped = 0
+    for _ in range(PURSUE_MAX // PURSUE_STEP):
+        if todo.size == 0:
+            break
+        y, _, _, status = smap.map(y, periods=PURSUE_STEP)
+        mapped += PURSUE_STEP * todo.size
+        k = in_neighbourhood(grid, y, known)
+        failed = status != 0
+        fate[todo[failed]] = -1
+        fate[todo[k >= 0]] = k[k >= 0]
+        left = (k < 0) & ~failed
+        todo, y = todo[left], y[left]
+    for t, yt in zip(todo, y, strict=True):
+        fate[t] = identify(smap, grid, yt, known)
+    return fate, mapped

@@ -1,0 +1,216 @@
+"""Basins by pursuit: every sample followed to a verified attractor (``--method pursuit``).
+
+1. Every sample point (``samples`` per cell, the cell mapping's points) is
+   mapped one forcing period by the compiled event-driven engine, in parallel
+   checkpointed tasks: one map per sample, the whole cost of the method.
+2. Each image is tied to the nearest sample point (:mod:`.sample_graph`):
+   following those ties is following the sample's trajectory at the
+   resolution of the sample spacing, so a map close to the identity (a weakly
+   damped focus, a weak saddle) does not trap chains in spurious cell classes.
+   Chains end in the sink (the image left the region) or in a cycle.
+3. Each cycle's fate is decided by direct simulation (:mod:`.attractors`):
+   the largest-draining cycles are simulated and classified, which finds and
+   verifies the attractors and their neighbourhoods; every other cycle is
+   pursued with the compiled multi-period map until it enters one.
+4. Per cell, the share of its samples going to each attractor and to the sink.
+   A cell is in the *basin* of attractor k when k is the only attractor its
+   samples reach, a *boundary* cell when they reach two or more (mixed), an
+   *escape* cell when all of them leave the region.
+5. The fixed points of P in the region are located by Newton from the
+   samples' smallest displacements, with their multipliers
+   (:mod:`.saddles`); those with one multiplier outside the unit circle are the
+   saddles.
+
+Attractors are numbered by the share of the samples they receive, largest first.
+"""
+
+from __future__ import annotations
+
+import time
+from typing import Any
+
+import numpy as np
+
+from .attractors import Attractor, identify, in_neighbourhood, pursue
+from .cellmap import (
+    DEFAULT_CHUNK,
+    LABEL_BOUNDARY,
+    LABEL_ESCAPE,
+    Basins,
+    Grid,
+    check_inputs,
+    sample_cells,
+)
+from .maps import StroboscopicMap
+from .parallel import Checkpoint, executor, run_tasks
+from .saddles import fixed_points
+from .sample_graph import map_samples, sample_graph
+
+IDENTIFY_FIRST = 8  # largest-draining cycles simulated one by one before batch pursuit
+
+
+def _map_all(
+    smap: StroboscopicMap,
+    grid: Grid,
+    samples: int,
+    seed: int,
+    workers: int | None,
+    scheduler: str | None,
+    checkpoint_dir: Any,
+    chunk: int,
+    progress: bool,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Every sample point and its one-period image, (n_cells * samples, 2) each."""
+    starts = list(range(0, grid.n_cells, chunk))
+    tasks = [
+        (f"samples_{a:09d}", (smap, grid, a, min(a + chunk, grid.n_cells), samples, seed))
+        for a in starts
+    ]
+    results: dict[str, dict[str, np.ndarray]] = {}
+    checkpoint = None
+    if checkpoint_dir is not None:
+        spec = {
+            "analysis": "pursuit",
+            "grid": [grid.nx, grid.nv, grid.x0, grid.x1, grid.v0, grid.v1],
+            "samples": samples,
+            "seed": seed,
+            "chunk": chunk,
+            "rtol": smap.rtol,
+            "p": smap.system.p.tolist(),
+            "ip": smap.system.ip.tolist(),
+        }
+        checkpoint = Checkpoint(checkpoint_dir, spec)
+        done = checkpoint.done()
+        results = {k: checkpoint.load(k) for k, _ in tasks if k in done}
+        tasks = [t for t in tasks if t[0] not in done]
+    if tasks:
+        smap.map(grid.centres(np.array([0])))  # load the kernels once: forked workers share them
+        with executor(workers, scheduler) as pool:
+            results.update(
+                run_tasks(map_samples, tasks, pool, checkpoint, desc="samples", progress=progress)
+            )
+    points = np.concatenate(
+        [sample_cells(grid, a, min(a + chunk, grid.n_cells), samples, seed) for a in starts]
+    )
+    images = np.concatenate([results[f"samples_{a:09d}"]["image"] for a in starts])
+    return points, images
+
+
+def _cycle_fates(
+    smap: StroboscopicMap, grid: Grid, points: np.ndarray, cycles: np.ndarray
+) -> tuple[np.ndarray, list[Attractor], dict[str, int]]:
+    """The attractor index of every cycle head (-1: its run failed)."""
+    known: list[Attractor] = []
+    fate = np.full(cycles.size, -2, dtype=np.int64)  # -2: not decided yet
+    simulated = 0
+    for n, head in enumerate(cycles):
+        if simulated >= IDENTIFY_FIRST:
+            break
+        k = int(in_neighbourhood(grid, points[head][None, :], known)[0])
+        if k < 0:
+            k = identify(smap, grid, points[head], known)
+            simulated += 1
+        fate[n] = k
+    # the rest in one batch: in a verified neighbourhood already, or pursued into one
+    rest = np.flatnonzero(fate == -2)
+    outside = int(np.sum(in_neighbourhood(grid, points[cycles[rest]], known) < 0))
+    pursued, mapped = pursue(smap, grid, points[cycles[rest]], known)
+    fate[rest] = pursued
+    stats = {
+        "cycles": int(cycles.size),
+        "cycles_simulated": simulated,
+        "cycles_pursued": outside,
+        "pursuit_periods": int(mapped),
+    }
+    return fate, known, stats
+
+
+def pursuit_basins(
+    smap: StroboscopicMap,
+    grid: Grid,
+    samples: int,
+    seed: int = 0,
+    workers: int | None = None,
+    scheduler: str | None = None,
+    checkpoint_dir: Any = None,
+    chunk: int = DEFAULT_CHUNK,
+    progress: bool = False,
+) -> Basins:
+    """Basins, attractors and saddles by pursuit of every sample (see the module doc)."""
+    check_inputs(smap, samples, seed)
+    clock = {"start": time.perf_counter()}
+    points, images = _map_all(
+        smap, grid, samples, seed, workers, scheduler, checkpoint_dir, chunk, progress
+    )
+    clock["mapped"] = time.perf_counter()
+    g = sample_graph(grid, points, images)
+    clock["graph"] = time.perf_counter()
+    fate, known, stats = _cycle_fates(smap, grid, points, g["cycles"])
+    clock["attractors"] = time.perf_counter()
+    n_att = len(known)
+    # each sample's fate: its cycle's attractor; the sink (column n_att) for chains
+    # leaving the region and runs that failed
+    order = np.argsort(g["cycles"])
+    heads, head_fate = g["cycles"][order], fate[order]
+    label = np.full(points.shape[0], n_att, dtype=np.int64)
+    on_cycle = g["terminal"] >= 0
+    f = head_fate[np.searchsorted(heads, g["terminal"][on_cycle])]
+    label[on_cycle] = np.where(f >= 0, f, n_att)
+    # number the attractors by their share of the samples, largest first
+    per_att = np.bincount(label, minlength=n_att + 1)[:n_att]
+    rank = np.argsort(-per_att, kind="stable")
+    known = [known[r] for r in rank]
+    relabel = np.append(np.argsort(rank), n_att)
+    label = relabel[label]
+    cell = np.repeat(np.arange(grid.n_cells), samples)
+    shares = np.bincount(cell * (n_att + 1) + label, minlength=grid.n_cells * (n_att + 1))
+    shares = shares.reshape(grid.n_cells, n_att + 1) / samples
+    reach = shares[:, :n_att] > 0
+    n_reach = reach.sum(axis=1)
+    labels = np.where(n_reach == 0, LABEL_ESCAPE, LABEL_BOUNDARY)
+    single = n_reach == 1
+    if n_att:
+        labels[single] = np.argmax(reach[single], axis=1)
+    attractor_of = np.full(grid.n_cells, -1)
+    for k, a in enumerate(known):
+        attractor_of[a.cells] = k
+    where = (labels == LABEL_BOUNDARY) | (attractor_of >= 0)
+    fps = fixed_points(smap, grid, points, images, samples, where)
+    for p in fps:  # where it lies: a saddle on a basin boundary, or inside an attractor
+        p["on_boundary"] = bool(labels[p["cell"]] == LABEL_BOUNDARY)
+        p["in_attractor"] = int(attractor_of[p["cell"]])
+    clock["saddles"] = time.perf_counter()
+    total = points.shape[0]
+    motions = []
+    for k, a in enumerate(known):
+        n_k = int(np.sum(label == k))
+        motions.append(
+            {
+                **a.motion,
+                "samples": n_k,
+                "sample_fraction": n_k / total,
+                "neighbourhood_cells": int(a.near.sum()),
+            }
+        )
+    image = grid.cell_of(np.nan_to_num(images, nan=np.inf)).reshape(grid.n_cells, samples)
+    saddles = [np.array([p["cell"]]) for p in fps if p["saddle"]]
+    periods = [int(m.get("period") or 0) for m in motions]
+    stats["sink_samples"] = int(np.sum(label == n_att))
+    stats["sink_sample_fraction"] = stats["sink_samples"] / total
+    stats["seconds"] = {
+        k: round(clock[k] - clock[p], 3)
+        for p, k in zip(
+            ["start", "mapped", "graph", "attractors"],
+            ["mapped", "graph", "attractors", "saddles"],
+            strict=True,
+        )
+    }
+    basins = Basins(
+        grid, samples, seed, image, labels, attractor_of, reach, saddles, periods, motions
+    )
+    basins.method = "pursuit"
+    basins.shares = shares
+    basins.fixed_points = fps
+    basins.fates = label.reshape(grid.n_cells, samples).astype(np.int16)
+    basins.info = {"pursuit": stats}
+    return basins
