@@ -12,7 +12,7 @@ import numba as nb
 import numpy as np
 
 from rubcosim.reference import system as S
-from rubcosim.reference.core import C_EVENTS, C_STATUS, N_COUNTERS, STATUS_OK
+from rubcosim.reference.core import C_EVENTS, C_STATUS, N_COUNTERS, STATUS_OK, new_event_log
 from rubcosim.reference.fast import integrate
 
 
@@ -39,17 +39,6 @@ def _log_impacts(evlog, n_events, imp_t, imp_y, imp_count):
                 for j in range(imp_y.shape[1]):
                     imp_y[c, j] = states[i, j]
             imp_count[0] = c + 1
-
-
-@nb.njit(cache=True)
-def _new_log(max_events, n):
-    return (
-        np.empty(max_events),
-        np.empty(max_events, dtype=np.int64),
-        np.empty(max_events, dtype=np.int64),
-        np.empty(max_events, dtype=np.int64),
-        np.empty((max_events, n)),
-    )
 
 
 @nb.njit(cache=True)
@@ -89,34 +78,19 @@ def strobe_run(
     mode = mode0
     t_eval = np.empty(0)
     rec = np.empty((0, 0))
-    evlog = _new_log(max_events, n)
+    evlog = new_event_log(max_events, n)
     queue = np.zeros(1)
     qmeta = np.zeros(3, dtype=np.int64)
+    dde = (queue, qmeta)
     cnt = np.zeros(N_COUNTERS, dtype=np.int64)
+    tol = (rtol, atol, max_step)
+    out = (t_eval, rec, evlog, cnt)
     for k in range(n_skip + n_keep):
         cnt[:] = 0
         qmeta[:] = 0
         t_a = t0 + k * period
         t_b = t0 + (k + 1) * period
-        t, mode = integrate(
-            y,
-            mode,
-            t_a,
-            t_b,
-            p,
-            ip,
-            rtol,
-            atol,
-            max_step,
-            t_eval,
-            rec,
-            evlog,
-            None,
-            queue,
-            qmeta,
-            cnt,
-            y_end,
-        )
+        t, mode = integrate(y, mode, t_a, t_b, p, ip, tol, out, None, dde, y_end)
         if cnt[C_STATUS] != STATUS_OK:
             return cnt[C_STATUS], k, mode
         for i in range(n):

@@ -39,31 +39,17 @@ from .history import (
 from .system import N_DELAYED
 
 
-def integrate(
-    y0,
-    mode,
-    t0,
-    t_end,
-    p,
-    ip,
-    rtol,
-    atol,
-    max_step,
-    t_eval,
-    rec,
-    evlog,
-    hist,
-    queue,
-    qmeta,
-    cnt,
-    y_final,
-):
+def integrate(y0, mode, t0, t_end, p, ip, tol, out, hist, dde, y_final):
     """Same contract as :func:`rubcosim.reference.fast.integrate`."""
+    rtol, atol, max_step = tol
+    t_eval, rec, evlog, cnt = out
+    queue, qmeta = dde
     y = np.array(y0, dtype=float)
     t = float(t0)
     n = y.shape[0]
     yd = np.empty(N_DELAYED)
     g_a, side, dirs, rates, g_b, dirs_b, rates_b = new_event_state()
+    ev = (g_a, side, dirs, rates, g_b)  # what after_step reads and updates
     y_next = np.empty(n)
     work = new_workspace(n, rec.shape[1])
     forced_slot, forced_side = -1, 0
@@ -112,17 +98,9 @@ def integrate(
                 p,
                 ip,
                 hist,
-                queue,
-                qmeta,
-                g_a,
-                side,
-                dirs,
-                rates,
-                g_b,
-                t_eval,
-                rec,
-                evlog,
-                cnt,
+                dde,
+                ev,
+                out,
                 y_next,
                 work,
             )

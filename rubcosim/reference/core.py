@@ -69,6 +69,7 @@ def record_point(t, y, mode, p, ip, hist, t_eval, i_eval, rec, yd, obuf):
 
 
 # ---------------------------------------------------------------- bookkeeping
+@nb.njit(cache=True)
 def new_event_log(max_events: int, n_state: int):
     """Event log arrays: time, kind, slot, mode after, state after."""
     # np.empty: only the pages of events that happen are ever touched
@@ -128,38 +129,20 @@ def needs_dense(t_b, hist, g_a, side, dirs, rates, g_b, t_eval, cnt):
 
 
 @nb.njit(cache=True)
-def after_step(
-    t_a,
-    t_b,
-    y_old,
-    y_b,
-    F,
-    mode,
-    p,
-    ip,
-    hist,
-    queue,
-    qmeta,
-    g_a,
-    side,
-    dirs,
-    rates,
-    g_b,
-    t_eval,
-    rec,
-    evlog,
-    cnt,
-    y_out,
-    work,
-):
-    """Process an accepted step [t_a, t_b] with dense output F and the event
-    functions ``g_b`` at t_b.
+def after_step(t_a, t_b, y_old, y_b, F, mode, p, ip, hist, dde, ev, out, y_out, work):
+    """Process an accepted step [t_a, t_b] with dense output F; ``ev = (g_a, side,
+    dirs, rates, g_b)`` holds the event functions at t_a (with their sides,
+    directions and rate slots) and at t_b; ``dde`` and ``out`` as for the engines'
+    ``integrate``.
 
     Finds the earliest event, records outputs, extends the delay history and,
     on an event, applies it.  Returns ``(t_next, mode, forced_slot,
     forced_side)``; ``forced_slot >= 0`` means an event was applied at
     ``t_next`` and ``y_out`` holds the post-event state (else ``y_out = y_b``).
     """
+    queue, qmeta = dde
+    g_a, side, dirs, rates, g_b = ev
+    t_eval, rec, evlog, cnt = out
     n = y_b.shape[0]
     h = t_b - t_a
     ybuf, yd, obuf, g, dtmp, rtmp = work

@@ -119,26 +119,17 @@ def rk_step(t, y, f, h, mode, p, ip, hist, yd, K, y_new, f_new, ytmp, dy, cnt):
 
 
 @nb.njit(cache=True)
-def integrate(
-    y0,
-    mode,
-    t0,
-    t_end,
-    p,
-    ip,
-    rtol,
-    atol,
-    max_step,
-    t_eval,
-    rec,
-    evlog,
-    hist,
-    queue,
-    qmeta,
-    cnt,
-    y_final,
-):
-    """Integrate from t0 to t_end; returns ``(t, mode)`` reached (t < t_end on failure)."""
+def integrate(y0, mode, t0, t_end, p, ip, tol, out, hist, dde, y_final):
+    """Integrate from t0 to t_end; returns ``(t, mode)`` reached (t < t_end on failure).
+
+    ``tol = (rtol, atol array, max_step)``; ``out = (t_eval, rec, evlog, cnt)``: the
+    output times, the recorded outputs there, the event log and the counters;
+    ``hist`` the delay history (None without delay) and ``dde = (queue, qmeta)`` its
+    breakpoint queue; the final state goes to ``y_final``.
+    """
+    rtol, atol, max_step = tol
+    t_eval, rec, evlog, cnt = out
+    queue, qmeta = dde
     n = y0.shape[0]
     y = y0.copy()
     t = t0
@@ -151,6 +142,7 @@ def integrate(
     work = new_workspace(n, rec.shape[1])
     yd = np.empty(N_DELAYED)
     g_a, side, dirs, rates, g_b, dirs_b, rates_b = new_event_state()
+    ev = (g_a, side, dirs, rates, g_b)  # what after_step reads and updates
     ytmp = np.empty(n)
     dy = np.empty(n)
     forced_slot, forced_side = -1, 0
@@ -214,28 +206,7 @@ def integrate(
                 continue
             dense_coefficients(t, h, y, y_new, f_new, K, mode, p, ip, hist, yd, F, ytmp, dy, cnt)
             t_next, mode_next, fs, fside = after_step(
-                t,
-                t_new,
-                y,
-                y_new,
-                F,
-                mode,
-                p,
-                ip,
-                hist,
-                queue,
-                qmeta,
-                g_a,
-                side,
-                dirs,
-                rates,
-                g_b,
-                t_eval,
-                rec,
-                evlog,
-                cnt,
-                y_next,
-                work,
+                t, t_new, y, y_new, F, mode, p, ip, hist, dde, ev, out, y_next, work
             )
             y[:] = y_next
             t = t_next
