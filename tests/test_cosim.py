@@ -33,6 +33,7 @@ CASES = {
     "jeffcott_delayed_feedback": (0.2, 1e-6, True),
     "jeffcott_chaos_control": (0.1, 1e-6, True),
     "impact_duffing": (7.0, 1e-6, True),
+    "feng_yang_attractors": (40.0, 1e-6, True),
     "impact_oscillator_linear": (8.0, 1e-6, True),
     "impact_oscillator_symmetric": (9.0, 1e-6, True),
     "two_dof_impact_oscillator": (60.0, 1e-6, True),
