@@ -46,7 +46,7 @@ from scipy.sparse.csgraph import breadth_first_order, connected_components
 from .errors import AnalysisError, MapError
 from .maps import StroboscopicMap, admissible
 from .motion import classify
-from .parallel import Checkpoint, executor, run_tasks
+from .parallel import map_in_chunks
 
 DEFAULT_CHUNK = 2000  # cells per task
 CELL_MAP_RTOL = 1e-7  # the map's tolerance: cells are far coarser than this
@@ -334,35 +334,11 @@ def cell_mapping(
 ) -> Basins:
     """Map every cell's samples (in parallel tasks, checkpointed) and analyse the graph."""
     check_inputs(smap, samples, seed)
-    starts = list(range(0, grid.n_cells, chunk))
-    tasks = [
-        (f"cells_{a:09d}", (smap, grid, a, min(a + chunk, grid.n_cells), samples, seed))
-        for a in starts
-    ]
-    checkpoint = None
-    results: dict[str, dict[str, np.ndarray]] = {}
-    if checkpoint_dir is not None:
-        spec = {
-            "analysis": "cell_mapping",
-            "grid": [grid.nx, grid.nv, grid.x0, grid.x1, grid.v0, grid.v1],
-            "samples": samples,
-            "seed": seed,
-            "chunk": chunk,
-            "rtol": smap.rtol,
-            "p": smap.system.p.tolist(),
-            "ip": smap.system.ip.tolist(),
-        }
-        checkpoint = Checkpoint(checkpoint_dir, spec)
-        done = checkpoint.done()
-        results = {k: checkpoint.load(k) for k, _ in tasks if k in done}
-        tasks = [t for t in tasks if t[0] not in done]
-    if tasks:
-        smap.map(grid.centres(np.array([0])))  # load the kernels once: forked workers share them
-        with executor(workers, scheduler) as pool:
-            results.update(
-                run_tasks(map_cells, tasks, pool, checkpoint, desc="cells", progress=progress)
-            )
-    image = np.concatenate([results[f"cells_{a:09d}"]["image"] for a in starts])
+    images = map_in_chunks(
+        smap, grid, samples, seed, map_cells, "cells", "cell_mapping",
+        workers, scheduler, checkpoint_dir, chunk, progress,
+    )  # fmt: skip
+    image = np.concatenate([r["image"] for r in images])
     image = image.reshape(grid.n_cells, samples).astype(np.int64)
     graph, comp, leaves, groups = persistent_groups(grid, image)
     # Coarse cells can split one attractor into several persistent groups (a cell whose

@@ -154,3 +154,53 @@ def run_tasks(
             future.cancel()
         bar.close()
     return results
+
+
+def map_in_chunks(
+    smap: Any,
+    grid: Any,
+    samples: int,
+    seed: int,
+    function: Any,
+    kind: str,
+    analysis: str,
+    workers: int | None,
+    scheduler: str | None,
+    checkpoint_dir: Any,
+    chunk: int,
+    progress: bool,
+) -> list[dict[str, np.ndarray]]:
+    """Run ``function(smap, grid, first, last, samples, seed)`` over the cells of ``grid``
+    (a :class:`.cellmap.Grid`; ``smap`` a :class:`.maps.StroboscopicMap`) in chunks
+    of ``chunk``, in parallel and checkpointed (a checkpoint is tied to ``analysis``,
+    the grid, the sampling and the system); the chunks' results in cell order."""
+    starts = list(range(0, grid.n_cells, chunk))
+    keys = [f"{kind}_{a:09d}" for a in starts]
+    tasks = [
+        (k, (smap, grid, a, min(a + chunk, grid.n_cells), samples, seed))
+        for k, a in zip(keys, starts, strict=True)
+    ]
+    checkpoint = None
+    results: dict[str, dict[str, np.ndarray]] = {}
+    if checkpoint_dir is not None:
+        spec = {
+            "analysis": analysis,
+            "grid": [grid.nx, grid.nv, grid.x0, grid.x1, grid.v0, grid.v1],
+            "samples": samples,
+            "seed": seed,
+            "chunk": chunk,
+            "rtol": smap.rtol,
+            "p": smap.system.p.tolist(),
+            "ip": smap.system.ip.tolist(),
+        }
+        checkpoint = Checkpoint(checkpoint_dir, spec)
+        done = checkpoint.done()
+        results = {k: checkpoint.load(k) for k, _ in tasks if k in done}
+        tasks = [t for t in tasks if t[0] not in done]
+    if tasks:
+        smap.map(grid.centres(np.array([0])))  # load the kernels once: forked workers share them
+        with executor(workers, scheduler) as pool:
+            results.update(
+                run_tasks(function, tasks, pool, checkpoint, desc=kind, progress=progress)
+            )
+    return [results[k] for k in keys]

@@ -42,7 +42,7 @@ from .cellmap import (
     sample_cells,
 )
 from .maps import StroboscopicMap
-from .parallel import Checkpoint, executor, run_tasks
+from .parallel import map_in_chunks
 from .saddles import fixed_points
 from .sample_graph import map_samples, sample_graph
 
@@ -61,38 +61,15 @@ def _map_all(
     progress: bool,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Every sample point and its one-period image, (n_cells * samples, 2) each."""
-    starts = list(range(0, grid.n_cells, chunk))
-    tasks = [
-        (f"samples_{a:09d}", (smap, grid, a, min(a + chunk, grid.n_cells), samples, seed))
-        for a in starts
-    ]
-    results: dict[str, dict[str, np.ndarray]] = {}
-    checkpoint = None
-    if checkpoint_dir is not None:
-        spec = {
-            "analysis": "pursuit",
-            "grid": [grid.nx, grid.nv, grid.x0, grid.x1, grid.v0, grid.v1],
-            "samples": samples,
-            "seed": seed,
-            "chunk": chunk,
-            "rtol": smap.rtol,
-            "p": smap.system.p.tolist(),
-            "ip": smap.system.ip.tolist(),
-        }
-        checkpoint = Checkpoint(checkpoint_dir, spec)
-        done = checkpoint.done()
-        results = {k: checkpoint.load(k) for k, _ in tasks if k in done}
-        tasks = [t for t in tasks if t[0] not in done]
-    if tasks:
-        smap.map(grid.centres(np.array([0])))  # load the kernels once: forked workers share them
-        with executor(workers, scheduler) as pool:
-            results.update(
-                run_tasks(map_samples, tasks, pool, checkpoint, desc="samples", progress=progress)
-            )
+    chunks = map_in_chunks(
+        smap, grid, samples, seed, map_samples, "samples", "pursuit",
+        workers, scheduler, checkpoint_dir, chunk, progress,
+    )  # fmt: skip
+    starts = range(0, grid.n_cells, chunk)
     points = np.concatenate(
         [sample_cells(grid, a, min(a + chunk, grid.n_cells), samples, seed) for a in starts]
     )
-    images = np.concatenate([results[f"samples_{a:09d}"]["image"] for a in starts])
+    images = np.concatenate([r["image"] for r in chunks])
     return points, images
 
 
