@@ -197,9 +197,13 @@ class UnitType:
             if not callable(k):
                 fail(f"kernel {k!r} is not callable")
         if self.hybrid is not None:
+            names = [s.name for s in self.outputs]
             expected = (*self.hybrid.outputs, "impacts", "mode")
-            if tuple(s.name for s in self.outputs) != expected:
-                fail(f"the unit's outputs must be the hybrid kernels' {expected}")
+            if names[: len(self.hybrid.outputs)] != list(self.hybrid.outputs) or not {
+                "impacts",
+                "mode",
+            } <= set(names):
+                fail(f"the unit's outputs must start with the hybrid kernels' {expected}")
             if len(self.states) != len(self.hybrid.initial(self._example_params())[0]):
                 fail("the hybrid kernels' state does not match the declared states")
         if not self.fmu.identifier.isidentifier():

@@ -119,13 +119,15 @@ class HybridUnit(Unit):
         _, dirs, _ = event_slots(self.kernels, t, y, mode, self._p)
         found = []
         for k in range(N_EVENTS):
-            if dirs[k] == 0:
+            # a breakpoint (dirs 2: a kink of the vector field, no jump) is integrated
+            # through here; the reference engines step onto it
+            if dirs[k] == 0 or dirs[k] == 2:
                 continue
 
             def g(tt: float, yy: np.ndarray, k: int = k) -> float:
                 return float(event_slots(self.kernels, tt, yy, mode, self._p)[0][k])
 
-            found.append((k, event(g, 0.0 if dirs[k] == 2 else float(dirs[k]))))
+            found.append((k, event(g, float(dirs[k]))))
         return found
 
     def _set_input_slots(self, t: float) -> None:
@@ -163,11 +165,18 @@ class HybridUnit(Unit):
                 st["impacts"] += 1
         raise RuntimeError(f"more than {MAX_EVENTS_PER_STEP} events in one step")
 
+    def _derived(self, values: Mapping[str, float]) -> dict[str, float]:
+        """Outputs a subclass derives from the kernels' (and ``mode``); none here."""
+        return {}
+
     def _outputs(self) -> dict[str, float]:
         st = self.state
         self._set_input_slots(self.time)  # the outputs at the current time see its inputs
         out = np.empty(len(self.kernels.outputs))
         self.kernels.output(self.time, st["y"], st["mode"], self._p, out)
         values = dict(zip(self.kernels.outputs, (float(v) for v in out), strict=True))
-        values.update(impacts=st["impacts"], mode=st["mode"])
+        values.update(impacts=st["impacts"], mode=st["mode"], **self._derived(values))
+        for s in self.outputs:
+            if s.kind == "integer":
+                values[s.name] = int(values[s.name])
         return values

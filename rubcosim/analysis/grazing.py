@@ -52,8 +52,9 @@ def obstacle_gap(system: System, states: np.ndarray) -> tuple[np.ndarray, np.nda
 
 def free_params(system: System) -> dict[str, Any]:
     """The parameters (for :meth:`Scenario.with_params`) that take the obstacle away."""
-    if system.family == S.FAMILY_OSCILLATOR:
-        if system.units["oscillator"].params["stop"] not in ("rigid_one_sided", "rigid_two_sided"):
+    oscillator = system.units.get("oscillator")
+    if oscillator is not None and oscillator.type == "impact_oscillator":
+        if oscillator.params["stop"] not in ("rigid_one_sided", "rigid_two_sided"):
             raise AnalysisError("oscillator.stop: grazing is studied on rigid stops")
         return {"oscillator.stop": "none"}
     stator = system.units.get("stator")

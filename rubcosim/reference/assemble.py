@@ -11,7 +11,6 @@ import numpy as np
 from rubcosim.components.bearing import oilfilm_sigma
 from rubcosim.components.controller import base_delay
 from rubcosim.components.graph import ModelGraph, UnitNode, model_scales
-from rubcosim.components.oscillator import STOP_KINDS, check_oscillator
 from rubcosim.components.parameters import ParameterError
 from rubcosim.components.registry import REGISTRY
 from rubcosim.components.stator import damping_from_restitution, reduced_mass
@@ -79,11 +78,6 @@ def build_system(
                 f"{whole[0].type!r}, a whole model"
             )
         return _hybrid_system(whole[0], chatter_tol)
-    if "oscillator" in units:
-        extra = sorted(set(units) - {"oscillator"})
-        if extra:
-            raise ParameterError(f"unit {extra[0]!r} cannot be combined with an oscillator")
-        return _oscillator_system(units["oscillator"], chatter_tol)
     if "rotor" not in units:
         raise ParameterError("the scenario needs a 'rotor' or an 'oscillator' unit")
     return _rotor_system(units, chatter_tol)
@@ -117,45 +111,6 @@ def _hybrid_system(u: UnitNode, chatter_tol: float) -> System:
         forcing_period=scales.forcing_period,
         velocity_scale=scales.velocity,
         units={u.role: u},
-    )
-
-
-def _oscillator_system(u: UnitNode, chatter_tol: float) -> System:
-    q = u.params
-    check_oscillator(q)
-    stop = STOP_KINDS.index(q["stop"])
-    p = np.zeros(S.N_P)
-    p[S.P_A] = q["linear_stiffness"]
-    p[S.P_B] = q["damping"]
-    p[S.P_C3] = q["cubic_stiffness"]
-    p[S.P_F] = q["forcing_amplitude"]
-    p[S.P_WF] = q["forcing_frequency"]
-    p[S.P_DB] = q["barrier"]
-    p[S.P_RR] = q["restitution"]
-    p[S.P_KSTOP] = q["stop_stiffness"]
-    scales = model_scales({"oscillator": u})
-    length, vscale = scales.length, scales.velocity
-    p[S.P_VCHAT] = chatter_tol * vscale
-    ip = np.zeros(S.N_IP, dtype=np.int64)
-    ip[S.IP_FAMILY] = S.FAMILY_OSCILLATOR
-    ip[S.IP_NSTATE] = 2
-    ip[S.IP_JOURNAL] = -1
-    ip[S.IP_CASING] = -1
-    ip[S.IP_STOP] = stop
-    return System(
-        family=S.FAMILY_OSCILLATOR,
-        p=p,
-        ip=ip,
-        y0=np.array([q["x0"], q["v0"]]),
-        mode0=S.MODE_FREE,
-        state_names=["oscillator.x", "oscillator.v"],
-        state_scale=_state_scale(
-            {"oscillator": u}, ["oscillator.x", "oscillator.v"], length, vscale
-        ),
-        output_names=S.output_names(ip),
-        forcing_period=scales.forcing_period,
-        velocity_scale=vscale,
-        units={"oscillator": u},
     )
 
 

@@ -21,8 +21,7 @@ from rubcosim.components.hybrid import (  # noqa: F401
 )
 
 FAMILY_ROTOR = 0
-FAMILY_OSCILLATOR = 1
-FAMILY_HYBRID = 2  # hybrid unit type i (rubcosim.reference.hybrid_dispatch) is 2 + i
+FAMILY_HYBRID = 1  # hybrid unit type i (rubcosim.reference.hybrid_dispatch) is 1 + i
 
 # ip layout
 IP_FAMILY = 0
@@ -33,8 +32,7 @@ IP_CONTROL = 4  # 0 none, 1 position feedback, 2 velocity feedback
 IP_NSTATE = 5
 IP_JOURNAL = 6  # state offset of the journal, -1 if none
 IP_CASING = 7  # state offset of the casing, -1 if none
-IP_STOP = 8  # oscillator stop kind
-N_IP = 9
+N_IP = 8
 
 ROTOR_JEFFCOTT, ROTOR_TWO_MASS = 0, 1
 STATOR_NONE, STATOR_RIGID, STATOR_ELASTIC, STATOR_CASING = 0, 1, 2, 3
@@ -48,16 +46,18 @@ P_D, P_X0, P_Y0, P_R, P_MU, P_KC, P_CC = 10, 11, 12, 13, 14, 15, 16
 P_MS, P_KS, P_CSC = 17, 18, 19
 P_KB, P_CB, P_SIGMA, P_CR = 20, 21, 22, 23
 P_KCTL, P_TAU0, P_EPS, P_NU, P_TON = 24, 25, 26, 27, 28
-# p layout, oscillator family
-P_A, P_B, P_C3, P_F, P_WF, P_DB, P_RR, P_KSTOP = 0, 1, 2, 3, 4, 5, 6, 7
 # shared
 P_VCHAT = 29  # normal speed below which a rebound counts as settled (chattering ends), m/s
 P_OMEGA_B = 30  # Baumgarte rate of the sustained-contact constraint, rad/s
 N_P = 32
 
 # Rotor modes MODE_FREE, MODE_SLIDE_POS, MODE_SLIDE_NEG, MODE_STICK: components.stator.
-# Oscillator stuck on the barrier +D / -D (free: MODE_FREE = 0):
-MODE_STUCK_UPPER = 1
-MODE_STUCK_LOWER = 2
+# The impact oscillator's modes: stuck on the barrier +D / -D (free: MODE_FREE = 0)
+from rubcosim.components.oscillator_unit import (  # noqa: E402, F401
+    STUCK_LOWER as MODE_STUCK_LOWER,
+)
+from rubcosim.components.oscillator_unit import (  # noqa: E402, F401
+    STUCK_UPPER as MODE_STUCK_UPPER,
+)
 
 N_DELAYED = 4  # the controller feeds back the disc state (x, y, vx, vy)

@@ -12,7 +12,9 @@ Families
 ``FAMILY_ROTOR``: disc (x, y, vx, vy) [+ journal] [+ casing]; stator none,
 rigid, elastic or casing; bearing none, linear or oil film (two-mass rotor);
 delayed-feedback controller on the disc.
-``FAMILY_OSCILLATOR``: single-DOF impact oscillator (x, v).
+``FAMILY_HYBRID + i``: the hybrid unit type i of the registry, a whole model whose
+own kernels hold its physics (the impact oscillators;
+:mod:`.hybrid_dispatch`).
 
 Discrete modes
 --------------
@@ -24,14 +26,13 @@ stator, friction holds it).  For the rigid stator "in contact" is sustained
 contact (full annular rub) with the normal force from the constraint; for
 the elastic stators it is penalty contact.  Slip reversal, sticking and
 release are events, so friction is a proper Filippov system, never a sign
-that chatters inside a step.  Oscillator:
-``MODE_FREE``, ``MODE_STUCK_UPPER``, ``MODE_STUCK_LOWER``.
+that chatters inside a step.  A hybrid unit type numbers its own modes.
 
 Event slots
 -----------
-Four slots (layout and slot numbers: :mod:`.layout`; the oscillator family:
-:mod:`.oscillator_system`).  ``dirs[k]``: 0 not an event, -1 fires when g goes from > 0 to
-<= 0, +1 the reverse, 2 either way (a breakpoint).  ``rates[k] = j`` says
+Four slots (layout and slot numbers: :mod:`.layout`).  ``dirs[k]``: 0 not an
+event, -1 fires when g goes from > 0 to <= 0, +1 the reverse, 2 either way (a
+breakpoint).  ``rates[k] = j`` says
 slot j holds dg_k/dt, used to find grazing contacts inside a step.
 """
 
@@ -74,12 +75,6 @@ from .hybrid_dispatch import (
 # all of it is imported here, and every kernel below reads its slots by name.
 # ruff: noqa: F405
 from .layout import *  # noqa: F403
-from .oscillator_system import (
-    oscillator_apply,
-    oscillator_events,
-    oscillator_outputs,
-    oscillator_rhs,
-)
 
 
 @nb.njit(cache=True, inline="always")
@@ -211,8 +206,6 @@ def rhs(t, y, yd, mode, p, ip, dy):
     """dy/dt for the system in ``mode``; ``yd`` is the delayed disc state."""
     if ip[IP_FAMILY] == FAMILY_ROTOR:
         rotor_rhs(t, y, yd, mode, p, ip, dy)
-    elif ip[IP_FAMILY] == FAMILY_OSCILLATOR:
-        oscillator_rhs(t, y, mode, p, ip, dy)
     else:
         hybrid_rhs(ip[IP_FAMILY] - FAMILY_HYBRID, t, y, mode, p, dy)
 
@@ -255,8 +248,6 @@ def events(t, y, yd, mode, p, ip, g, dirs, rates):
         rates[k] = -1
     if ip[IP_FAMILY] == FAMILY_ROTOR:
         rotor_events(t, y, yd, mode, p, ip, g, dirs, rates)
-    elif ip[IP_FAMILY] == FAMILY_OSCILLATOR:
-        oscillator_events(t, y, mode, p, ip, g, dirs, rates)
     else:
         hybrid_events(ip[IP_FAMILY] - FAMILY_HYBRID, t, y, mode, p, g, dirs, rates)
 
@@ -318,15 +309,11 @@ def apply_event(k, t, y, yd, mode, p, ip):
     """
     if ip[IP_FAMILY] == FAMILY_ROTOR:
         return rotor_apply(k, t, y, yd, mode, p, ip)
-    if ip[IP_FAMILY] == FAMILY_OSCILLATOR:
-        return oscillator_apply(k, t, y, mode, p, ip)
     return hybrid_apply(ip[IP_FAMILY] - FAMILY_HYBRID, k, t, y, mode, p)
 
 
 def output_names(ip: np.ndarray) -> list[str]:
     """Names of the outputs written by :func:`outputs`, in the same order."""
-    if ip[IP_FAMILY] == FAMILY_OSCILLATOR:
-        return ["oscillator.x", "oscillator.v", "oscillator.contact"]
     if ip[IP_FAMILY] >= FAMILY_HYBRID:
         return hybrid_output_names(int(ip[IP_FAMILY]) - FAMILY_HYBRID)
     names = ["rotor.x", "rotor.y", "rotor.vx", "rotor.vy"]
@@ -346,10 +333,7 @@ def output_names(ip: np.ndarray) -> list[str]:
 @nb.njit(cache=True)
 def outputs(t, y, yd, mode, p, ip, out):
     """Recorded outputs (see :func:`output_names`); ``stator.contact`` and
-    ``oscillator.contact`` are 0 free, 1 in contact or sliding, 2 sticking."""
-    if ip[IP_FAMILY] == FAMILY_OSCILLATOR:
-        oscillator_outputs(y, mode, p, ip, out)
-        return
+    a hybrid unit's ``contact`` are 0 free, 1 in contact or sliding, 2 sticking."""
     if ip[IP_FAMILY] >= FAMILY_HYBRID:
         hybrid_outputs(ip[IP_FAMILY] - FAMILY_HYBRID, t, y, mode, p, out)
         return
