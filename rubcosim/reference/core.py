@@ -39,18 +39,23 @@ STATUS_MESSAGES = (
 )
 
 
+@nb.njit(cache=True, inline="always")
+def record_row(t, y, mode, p, ip, hist, yd, obuf, rec, i):
+    """Outputs at time t of the state y into row i of ``rec``."""
+    delayed_state(t, p, ip, hist, yd)
+    outputs(t, y, yd, mode, p, ip, obuf)
+    for c in range(rec.shape[1]):
+        rec[i, c] = obuf[c]
+
+
 @nb.njit(cache=True)
 def record(t_lo, t_hi, t_old, h, y_old, F, mode, p, ip, hist, t_eval, i_eval, rec, ybuf, yd, obuf):
     """Record outputs at the grid times in (t_lo, t_hi]; returns the next grid index."""
-    n_out = rec.shape[1]
     while i_eval < t_eval.shape[0] and t_eval[i_eval] <= t_hi:
         te = t_eval[i_eval]
         if te > t_lo:
             dense_eval(t_old, h, y_old, F, te, ybuf, ybuf.shape[0])
-            delayed_state(te, p, ip, hist, yd)
-            outputs(te, ybuf, yd, mode, p, ip, obuf)
-            for c in range(n_out):
-                rec[i_eval, c] = obuf[c]
+            record_row(te, ybuf, mode, p, ip, hist, yd, obuf, rec, i_eval)
         i_eval += 1
     return i_eval
 
@@ -58,12 +63,8 @@ def record(t_lo, t_hi, t_old, h, y_old, F, mode, p, ip, hist, t_eval, i_eval, re
 @nb.njit(cache=True)
 def record_point(t, y, mode, p, ip, hist, t_eval, i_eval, rec, yd, obuf):
     """Record outputs at grid times <= t from the state y (used at the start)."""
-    n_out = rec.shape[1]
     while i_eval < t_eval.shape[0] and t_eval[i_eval] <= t:
-        delayed_state(t, p, ip, hist, yd)
-        outputs(t, y, yd, mode, p, ip, obuf)
-        for c in range(n_out):
-            rec[i_eval, c] = obuf[c]
+        record_row(t, y, mode, p, ip, hist, yd, obuf, rec, i_eval)
         i_eval += 1
     return i_eval
 

@@ -53,11 +53,14 @@ def locate(slot, sgn, ta, fa, tb, fb, seg, ctx, hist, scratch):
 @nb.njit(cache=True)
 def pre_side(direction, side):
     """Sign of an event function before it fires: +1 for a falling event, -1
-    for a rising one, the current side for a breakpoint; 0 if undetermined."""
+    for a rising one, the current side for a breakpoint; 0 for a slot that is not
+    an event (direction 0) or whose side is undetermined."""
     if direction == -1:
         return 1.0
     if direction == 1:
         return -1.0
+    if direction == 0:
+        return 0.0
     return float(side)
 
 
@@ -122,8 +125,6 @@ def find_event(t_a, t_b, seg, ctx, hist, scratch, g_a, side_a, dirs_a, rates_a, 
     best_k = -1
     best_t = t_b
     for k in range(N_EVENTS):
-        if dirs_a[k] == 0:
-            continue
         sgn = pre_side(dirs_a[k], side_a[k])
         if sgn == 0.0:
             continue
@@ -173,8 +174,6 @@ def event_candidate(g_a, side_a, dirs_a, rates_a, g_b):
     """Whether the step may hold an event: a sign change, or a rate companion
     that changes sign (a possible grazing contact).  Cheap; no dense output."""
     for k in range(N_EVENTS):
-        if dirs_a[k] == 0:
-            continue
         sgn = pre_side(dirs_a[k], side_a[k])
         if sgn == 0.0:
             continue

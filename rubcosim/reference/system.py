@@ -330,6 +330,14 @@ def output_names(ip: np.ndarray) -> list[str]:
     return names
 
 
+@nb.njit(cache=True, inline="always")
+def copy_body(y, j, out, i):
+    """A planar body's (x, y, vx, vy) from state slot j to output slot i; the next slot."""
+    for q in range(4):
+        out[i + q] = y[j + q]
+    return i + 4
+
+
 @nb.njit(cache=True)
 def outputs(t, y, yd, mode, p, ip, out):
     """Recorded outputs (see :func:`output_names`); ``stator.contact`` and
@@ -337,14 +345,10 @@ def outputs(t, y, yd, mode, p, ip, out):
     if ip[IP_FAMILY] >= FAMILY_HYBRID:
         hybrid_outputs(ip[IP_FAMILY] - FAMILY_HYBRID, t, y, mode, p, out)
         return
-    for i in range(4):
-        out[i] = y[i]
-    i = 4
+    i = copy_body(y, 0, out, 0)
     j = ip[IP_JOURNAL]
     if j >= 0:
-        for q in range(4):
-            out[i + q] = y[j + q]
-        i += 4
+        i = copy_body(y, j, out, i)
     if ip[IP_STATOR] != STATOR_NONE:
         cx, cy, _, _ = stator_centre(y, p, ip)
         out[i] = p[P_D] - math.hypot(y[0] - cx, y[1] - cy)
@@ -354,9 +358,7 @@ def outputs(t, y, yd, mode, p, ip, out):
         i += 3
     c = ip[IP_CASING]
     if c >= 0:
-        for q in range(4):
-            out[i + q] = y[c + q]
-        i += 4
+        i = copy_body(y, c, out, i)
     if ip[IP_BEARING] != BEARING_NONE:
         bx, by = bearing_force(y, p, ip)
         out[i] = bx
