@@ -184,31 +184,51 @@ def basins(
     scheduler: str | None = None,
     checkpoint_dir: str | Path | None = None,
     progress: bool = False,
-    method: str = "gcm",
+    method: str | None = None,
+    slice: str | Sequence[str] | None = None,  # noqa: A002
 ) -> Basins:
-    """Basins of attraction by generalized cell mapping on the stroboscopic section of a
-    single-DOF scenario: ``grid = (nx, nv)`` cells over ``region = (x0, x1, v0, v1)``
-    (the state's units, e.g. m and m/s), ``samples`` random points per cell from
-    ``seed``.  ``method``: ``"gcm"``, generalized cell mapping on the one-period map
-    (:mod:`rubcosim.analysis.cellmap`), or ``"pursuit"``, every sample followed to a
-    verified attractor, with the saddles by Newton (:mod:`rubcosim.analysis.pursuit`;
-    needed where the map is close to the identity, as in Feng & Yang's case).
-    ``result.info`` holds the wall time (s)."""
+    """Basins of attraction on the stroboscopic section: ``grid = (nx, nv)`` cells over
+    ``region = (x0, x1, v0, v1)`` (the state's units, e.g. m and m/s), ``samples``
+    random points per cell from ``seed``.  ``method``: ``"gcm"`` (the default without
+    ``slice``), generalized cell mapping on the one-period map of a single-DOF
+    scenario (:mod:`rubcosim.analysis.cellmap`); ``"pursuit"``, every sample followed
+    to a verified attractor, with the saddles by Newton (:mod:`rubcosim.analysis.pursuit`;
+    needed where the map is close to the identity, as in Feng & Yang's case);
+    ``"slice"`` (the default with ``slice``), any delay-free scenario: the grid spans
+    the two state components ``slice = (name1, name2)`` (default the first two), the
+    others keep the scenario's initial values, and every sample is followed in the
+    full state space (:mod:`rubcosim.analysis.slices`).  ``result.info`` holds the
+    wall time (s)."""
     import time
 
     from .analysis.cellmap import BASIN_METHODS, CELL_MAP_RTOL, Grid, cell_mapping
     from .analysis.errors import AnalysisError
     from .analysis.maps import StroboscopicMap
     from .analysis.pursuit import pursuit_basins
+    from .analysis.slices import parse_slice, slice_basins
 
+    method = method or ("gcm" if slice is None else "slice")
     if method not in BASIN_METHODS:
         raise AnalysisError(f"--method {method!r}: one of {', '.join(BASIN_METHODS)}")
     sc = _scenario(scenario)
+    axes = parse_slice(sc.system, slice) if slice is not None or method == "slice" else (0, 1)
+    if method != "slice" and axes != (0, 1):
+        raise AnalysisError(
+            f"--slice {slice!r}: --method {method} works on the first two states only; "
+            "use --method slice"
+        )
     cells = Grid.parse(grid, region)
     smap = StroboscopicMap(sc.system, _rtol(rtol, CELL_MAP_RTOL))
     t0 = time.perf_counter()
-    run = pursuit_basins if method == "pursuit" else cell_mapping
-    result = run(smap, cells, samples, seed, workers, scheduler, checkpoint_dir, progress=progress)
+    if method == "slice":
+        where = {"workers": workers, "scheduler": scheduler, "progress": progress}
+        where["checkpoint_dir"] = checkpoint_dir
+        result = slice_basins(smap, cells, samples, seed, axes, where)
+    else:
+        run = pursuit_basins if method == "pursuit" else cell_mapping
+        result = run(
+            smap, cells, samples, seed, workers, scheduler, checkpoint_dir, progress=progress
+        )
     result.info = {
         **result.info,
         "method": method,

@@ -170,11 +170,19 @@ def _analysis_parsers(sub: Any) -> None:
     bs.add_argument("--seed", type=int, default=0, help="seed of the sample points")
     bs.add_argument(
         "--method",
-        default="gcm",
-        help=f"{' or '.join(BASIN_METHODS)}; gcm: generalized cell mapping on the "
-        "one-period map; pursuit: every sample followed to a verified attractor, "
+        default=None,
+        help=f"{' or '.join(BASIN_METHODS)}; gcm (default): generalized cell mapping on "
+        "the one-period map; pursuit: every sample followed to a verified attractor, "
         "saddles by Newton (for maps close to the identity, e.g. "
-        "scenarios/feng_yang_attractors.toml)",
+        "scenarios/feng_yang_attractors.toml); slice (default with --slice): every "
+        "sample followed in the full state space, any delay-free system",
+    )
+    bs.add_argument(
+        "--slice",
+        default=None,
+        metavar="NAME1,NAME2",
+        help="the two state components the grid spans (default: the first two); the "
+        "others keep the scenario's initial values, e.g. oscillator.x2,oscillator.v2",
     )
 
 
@@ -226,10 +234,13 @@ def cmd_basins(args: argparse.Namespace) -> int:
     from .analysis.cellmap import Grid
     from .analysis.outputs import checkpoint_dir, write_basins
     from .analysis.published import basins_summary
+    from .analysis.slices import parse_slice
 
     scenario = api.load(args.scenario, args.set)
     Grid.parse(args.grid, args.region)  # bad input is refused before --out is looked at
-    if args.method not in BASIN_METHODS:
+    if args.slice is not None:
+        parse_slice(scenario.system, args.slice)
+    if args.method not in (None, *BASIN_METHODS):
         raise AnalysisError(f"--method {args.method!r}: one of {', '.join(BASIN_METHODS)}")
     out = check_output_dir(args.out)
     ckpt = checkpoint_dir(out)
@@ -245,6 +256,7 @@ def cmd_basins(args: argparse.Namespace) -> int:
         checkpoint_dir=ckpt,
         progress=not args.no_progress,
         method=args.method,
+        slice=args.slice,
     )
     write_directory(out, lambda tmp: write_basins(basins, tmp, scenario.name, basins.info))
     shutil.rmtree(ckpt, ignore_errors=True)

@@ -17,6 +17,11 @@ A point is *pursued* by mapping it ``PURSUE_STEP`` periods at a time (the
 compiled multi-period map, many points per call) until it enters a verified
 neighbourhood; one that has not after ``PURSUE_MAX`` periods is simulated and
 classified, which finds a new attractor or a known one.
+
+Where a neighbourhood lives is the *space*'s business: :class:`CellSpace`, cells of
+a 2-D section grid (``--method pursuit``), or :class:`.slices.StateSpace`, balls in
+the full state space (``--method slice``); :func:`identify`, :func:`pursue` and
+:func:`settle` work with either.
 """
 
 from __future__ import annotations
@@ -38,6 +43,7 @@ NEAR_RADIUS = 1  # cells around a periodic attractor's points tried for its neig
 CHAOS_KEEP = 2000  # periods of a non-periodic attractor whose cells are its neighbourhood
 PURSUE_STEP = 20  # periods per pursuit call
 PURSUE_MAX = 600  # periods pursued before simulating and classifying
+IDENTIFY_FIRST = 8  # starts simulated one by one (in order) before batch pursuit
 
 
 @dataclass
@@ -48,7 +54,8 @@ class Attractor:
     motion: dict[str, Any]
     points: np.ndarray  # points on the attractor (the n points, or CHAOS_KEEP of them)
     cells: np.ndarray  # cell numbers of those points (the sink dropped)
-    near: np.ndarray  # bool per cell: the verified neighbourhood
+    near: np.ndarray  # bool per cell: the verified neighbourhood (CellSpace)
+    radius: float = 0.0  # state scales: its verified ball around each point (StateSpace)
 
     @property
     def periodic(self) -> bool:
@@ -73,7 +80,7 @@ def _motion(smap: StroboscopicMap, start: np.ndarray) -> tuple[dict[str, Any], A
     return motion, orbit
 
 
-def _converges_to(
+def converges_to(
     smap: StroboscopicMap, starts: np.ndarray, points: np.ndarray, n: int
 ) -> np.ndarray:
     """Whether the orbit from each start is on the n-periodic ``points`` after
@@ -107,7 +114,7 @@ def new_attractor(
         own = grid.cell_of(pts)
         own = own[own != grid.sink]
         tried = _neighbour_cells(grid, own, NEAR_RADIUS)
-        good = _converges_to(smap, grid.centres(tried), pts, motion["period"])
+        good = converges_to(smap, grid.centres(tried), pts, motion["period"])
         near[tried[good]] = True
         near[own] = True  # the attractor's own cells (its points lie in them)
     else:
@@ -134,16 +141,33 @@ def match(smap: StroboscopicMap, grid: Grid, motion: dict[str, Any], known: list
     return -1
 
 
-def identify(smap: StroboscopicMap, grid: Grid, start: np.ndarray, known: list[Attractor]) -> int:
+class CellSpace:
+    """Verified neighbourhoods as sets of cells of a 2-D section ``grid``."""
+
+    def __init__(self, grid: Grid) -> None:
+        self.grid = grid
+
+    def locate(self, states: np.ndarray, known: list[Attractor]) -> np.ndarray:
+        return in_neighbourhood(self.grid, states, known)
+
+    def match(self, smap: StroboscopicMap, motion: dict[str, Any], known: list[Attractor]) -> int:
+        return match(smap, self.grid, motion, known)
+
+    def build(self, smap: StroboscopicMap, motion: dict[str, Any], orbit: Any) -> Attractor:
+        return new_attractor(smap, self.grid, motion, orbit)
+
+
+def identify(smap: StroboscopicMap, space: Any, start: np.ndarray, known: list[Attractor]) -> int:
     """Simulate from ``start``: the index of the attractor it settles on, appending a
-    new verified one to ``known`` when needed; -1 when the run fails."""
+    new verified one (in ``space``, a :class:`CellSpace` or a state space) to ``known``
+    when needed; -1 when the run fails."""
     motion, orbit = _motion(smap, start)
     if motion["label"] == "unknown":
         return -1
-    k = match(smap, grid, motion, known)
+    k = space.match(smap, motion, known)
     if k >= 0:
         return k
-    known.append(new_attractor(smap, grid, motion, orbit))
+    known.append(space.build(smap, motion, orbit))
     return len(known) - 1
 
 
@@ -160,13 +184,14 @@ def in_neighbourhood(grid: Grid, states: np.ndarray, known: list[Attractor]) -> 
 
 
 def pursue(
-    smap: StroboscopicMap, grid: Grid, starts: np.ndarray, known: list[Attractor]
+    smap: StroboscopicMap, space: Any, starts: np.ndarray, known: list[Attractor]
 ) -> tuple[np.ndarray, int]:
     """Where each start goes: its attractor index (-1: the run failed), found by
     mapping all of them ``PURSUE_STEP`` periods at a time until each is in a verified
-    neighbourhood, simulating and classifying those that are not after ``PURSUE_MAX``
-    (which may add attractors to ``known``).  Also returns the periods mapped."""
-    fate = in_neighbourhood(grid, starts, known)
+    neighbourhood of ``space``, simulating and classifying those that are not after
+    ``PURSUE_MAX`` (which may add attractors to ``known``).  Also returns the periods
+    mapped."""
+    fate = space.locate(starts, known)
     todo = np.flatnonzero(fate < 0)
     y = starts[todo].copy()
     mapped = 0
@@ -175,12 +200,43 @@ def pursue(
             break
         y, _, _, status = smap.map(y, periods=PURSUE_STEP)
         mapped += PURSUE_STEP * todo.size
-        k = in_neighbourhood(grid, y, known)
+        k = space.locate(y, known)
         failed = status != 0
         fate[todo[failed]] = -1
         fate[todo[k >= 0]] = k[k >= 0]
         left = (k < 0) & ~failed
         todo, y = todo[left], y[left]
     for t, yt in zip(todo, y, strict=True):
-        fate[t] = identify(smap, grid, yt, known)
+        fate[t] = identify(smap, space, yt, known)
     return fate, mapped
+
+
+def settle(
+    smap: StroboscopicMap, space: Any, starts: np.ndarray
+) -> tuple[np.ndarray, list[Attractor], dict[str, int]]:
+    """The attractor index of every start (-1: its run failed) and the attractors found:
+    in order, the first start outside every verified neighbourhood is simulated and
+    classified (``IDENTIFY_FIRST`` of them at most), the rest pursued in one batch."""
+    known: list[Attractor] = []
+    fate = np.full(starts.shape[0], -2, dtype=np.int64)  # -2: not decided yet
+    simulated = 0
+    while simulated < IDENTIFY_FIRST:
+        left = np.flatnonzero(fate == -2)
+        k = space.locate(starts[left], known)
+        fate[left[k >= 0]] = k[k >= 0]
+        out = left[k < 0]
+        if out.size == 0:
+            break
+        fate[out[0]] = identify(smap, space, starts[out[0]], known)
+        simulated += 1
+    rest = np.flatnonzero(fate == -2)
+    outside = int(np.sum(space.locate(starts[rest], known) < 0))
+    pursued, mapped = pursue(smap, space, starts[rest], known)
+    fate[rest] = pursued
+    stats = {
+        "starts": int(starts.shape[0]),
+        "simulated": simulated,
+        "pursued": outside,
+        "pursuit_periods": int(mapped),
+    }
+    return fate, known, stats

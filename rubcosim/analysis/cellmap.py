@@ -52,7 +52,7 @@ DEFAULT_CHUNK = 2000  # cells per task
 CELL_MAP_RTOL = 1e-7  # the map's tolerance: cells are far coarser than this
 LABEL_BOUNDARY = -2
 LABEL_ESCAPE = -1
-BASIN_METHODS = ("gcm", "pursuit")  # generalized cell mapping; .pursuit
+BASIN_METHODS = ("gcm", "pursuit", "slice")  # generalized cell mapping; .pursuit; .slices
 MERGE_TOL = 1e-3  # state scales: simulated motions this close are the same attractor
 
 
@@ -313,8 +313,14 @@ def check_inputs(smap: StroboscopicMap, samples: int, seed: int) -> None:
     if smap.n_state != 2:
         raise MapError(
             f"cell mapping works on a 2-D section (x, x'); this system's state has "
-            f"{smap.n_state} components ({', '.join(smap.system.state_names)})"
+            f"{smap.n_state} components ({', '.join(smap.system.state_names)}); "
+            "--slice NAME1,NAME2 follows samples in the full state space"
         )
+    check_sampling(samples, seed)
+
+
+def check_sampling(samples: int, seed: int) -> None:
+    """One-line errors naming the flag: ``--samples`` >= 1, ``--seed`` >= 0."""
     if not (isinstance(samples, int) and samples >= 1):
         raise AnalysisError(f"--samples = {samples!r} must be an integer >= 1")
     if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:

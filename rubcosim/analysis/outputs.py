@@ -174,6 +174,7 @@ def write_basins(basins: Basins, tmp: Path, scenario_name: str, info: dict[str, 
         centres=g.centres(),
         grid=np.array([g.nx, g.nv]),
         region=np.array([g.x0, g.x1, g.v0, g.v1]),
+        slice=np.array(info.get("slice") or info.get("state_names", ["x", "x'"])[:2]),
         saddle_cells=np.concatenate(basins.saddles) if basins.saddles else np.zeros(0, int),
         **({} if basins.shares is None else {"shares": basins.shares, "fates": basins.fates}),
     )
@@ -215,7 +216,8 @@ def write_basins(basins: Basins, tmp: Path, scenario_name: str, info: dict[str, 
             **info,
         },
     )
-    _plot_basins(basins, tmp / "basins.png", info.get("state_names", ["x", "x'"]))
+    names = info.get("slice") or info.get("state_names", ["x", "x'"])
+    _plot_basins(basins, tmp / "basins.png", names)
 
 
 def _pursuit_report(basins: Basins, scenario_name: str) -> dict[str, Any]:
@@ -274,7 +276,8 @@ def _plot_basins(basins: Basins, path: Path, names: list[str]) -> None:
     for a in range(k):
         c = g.centres(np.flatnonzero(basins.attractor_of == a))
         ax.plot(c[:, 0], c[:, 1], ".", ms=2, color=plt.cm.Set1(a % 9))
-        pts = np.asarray(basins.motions[a].get("poincare_points", []))
+        m = basins.motions[a]  # on a slice: the points' projections onto it
+        pts = np.asarray(m.get("slice_points", m.get("poincare_points", [])))
         if pts.size:
             ax.plot(
                 pts[:, 0],
@@ -285,7 +288,9 @@ def _plot_basins(basins: Basins, path: Path, names: list[str]) -> None:
                 ms=8,
                 label=f"attractor {a}: {basins.motions[a]['label']}",
             )
+    axes = basins.info.get("slice_axes", [0, 1])
     sec = [np.asarray(m.get("section_points", [])) for m in basins.motions]
+    sec = [p[:, axes] if p.size else p for p in sec]
     for a, pts in enumerate(sec):  # a non-periodic attractor: its section points
         if pts.size:
             ax.plot(pts[:, 0], pts[:, 1], ".", ms=1.5, color=plt.cm.Set1(a % 9))
@@ -299,7 +304,10 @@ def _plot_basins(basins: Basins, path: Path, names: list[str]) -> None:
         ax.plot([], [], "x", color="red", label="saddle cells")
     ax.set_xlabel(names[0])
     ax.set_ylabel(names[1])
-    ax.set_title("basins of attraction (black: boundary cells)")
+    title = "basins of attraction (black: boundary cells)"
+    if basins.method == "slice":
+        title += "\nslice: the other states at their initial values"
+    ax.set_title(title)
     ax.legend(loc="upper right", fontsize=8)
     fig.tight_layout()
     fig.savefig(path, dpi=130)

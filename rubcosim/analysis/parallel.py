@@ -198,7 +198,7 @@ def map_in_chunks(
         results = {k: checkpoint.load(k) for k, _ in tasks if k in done}
         tasks = [t for t in tasks if t[0] not in done]
     if tasks:
-        smap.map(grid.centres(np.array([0])))  # load the kernels once: forked workers share them
+        smap.map(smap.system.y0[None, :])  # load the kernels once: forked workers share them
         with executor(workers, scheduler) as pool:
             results.update(
                 run_tasks(function, tasks, pool, checkpoint, desc=kind, progress=progress)

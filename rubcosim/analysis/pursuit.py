@@ -31,7 +31,7 @@ from typing import Any
 
 import numpy as np
 
-from .attractors import Attractor, identify, in_neighbourhood, pursue
+from .attractors import Attractor, CellSpace, settle
 from .cellmap import (
     DEFAULT_CHUNK,
     LABEL_BOUNDARY,
@@ -45,8 +45,6 @@ from .maps import StroboscopicMap
 from .parallel import map_in_chunks
 from .saddles import fixed_points
 from .sample_graph import map_samples, sample_graph
-
-IDENTIFY_FIRST = 8  # largest-draining cycles simulated one by one before batch pursuit
 
 
 def _map_all(
@@ -73,33 +71,48 @@ def _map_all(
     return points, images
 
 
-def _cycle_fates(
-    smap: StroboscopicMap, grid: Grid, points: np.ndarray, cycles: np.ndarray
-) -> tuple[np.ndarray, list[Attractor], dict[str, int]]:
-    """The attractor index of every cycle head (-1: its run failed)."""
-    known: list[Attractor] = []
-    fate = np.full(cycles.size, -2, dtype=np.int64)  # -2: not decided yet
-    simulated = 0
-    for n, head in enumerate(cycles):
-        if simulated >= IDENTIFY_FIRST:
-            break
-        k = int(in_neighbourhood(grid, points[head][None, :], known)[0])
-        if k < 0:
-            k = identify(smap, grid, points[head], known)
-            simulated += 1
-        fate[n] = k
-    # the rest in one batch: in a verified neighbourhood already, or pursued into one
-    rest = np.flatnonzero(fate == -2)
-    outside = int(np.sum(in_neighbourhood(grid, points[cycles[rest]], known) < 0))
-    pursued, mapped = pursue(smap, grid, points[cycles[rest]], known)
-    fate[rest] = pursued
-    stats = {
-        "cycles": int(cycles.size),
-        "cycles_simulated": simulated,
-        "cycles_pursued": outside,
-        "pursuit_periods": int(mapped),
+def tally(grid: Grid, samples: int, label: np.ndarray, known: list[Attractor]) -> dict[str, Any]:
+    """From each sample's attractor (``label``, rows in cell order, ``samples`` per cell;
+    ``len(known)`` for the sink): the attractors numbered by their share of the samples,
+    largest first (``known``, ``label`` renumbered), per cell the ``shares`` of its samples
+    per attractor and (last column) the sink, ``reach``, the cell ``labels`` (basin k,
+    boundary, escape), ``attractor_of`` (cells holding an attractor's points) and the
+    ``motions`` with their sample counts."""
+    n_att = len(known)
+    per_att = np.bincount(label, minlength=n_att + 1)[:n_att]
+    rank = np.argsort(-per_att, kind="stable")
+    known = [known[r] for r in rank]
+    label = np.append(np.argsort(rank), n_att)[label]
+    cell = np.repeat(np.arange(grid.n_cells), samples)
+    shares = np.bincount(cell * (n_att + 1) + label, minlength=grid.n_cells * (n_att + 1))
+    shares = shares.reshape(grid.n_cells, n_att + 1) / samples
+    reach = shares[:, :n_att] > 0
+    n_reach = reach.sum(axis=1)
+    labels = np.where(n_reach == 0, LABEL_ESCAPE, LABEL_BOUNDARY)
+    single = n_reach == 1
+    if n_att:
+        labels[single] = np.argmax(reach[single], axis=1)
+    attractor_of = np.full(grid.n_cells, -1)
+    for k, a in enumerate(known):
+        attractor_of[a.cells] = k
+    motions = []
+    for k, a in enumerate(known):
+        n_k = int(np.sum(label == k))
+        where = (
+            {"neighbourhood_radius_in_state_scales": a.radius}
+            if a.radius
+            else {"neighbourhood_cells": int(a.near.sum())}
+        )
+        motions.append({**a.motion, "samples": n_k, "sample_fraction": n_k / label.size, **where})
+    return {
+        "known": known,
+        "label": label,
+        "shares": shares,
+        "reach": reach,
+        "labels": labels,
+        "attractor_of": attractor_of,
+        "motions": motions,
     }
-    return fate, known, stats
 
 
 def pursuit_basins(
@@ -122,7 +135,13 @@ def pursuit_basins(
     clock["mapped"] = time.perf_counter()
     g = sample_graph(grid, points, images)
     clock["graph"] = time.perf_counter()
-    fate, known, stats = _cycle_fates(smap, grid, points, g["cycles"])
+    fate, known, found = settle(smap, CellSpace(grid), points[g["cycles"]])
+    stats = {
+        "cycles": found["starts"],
+        "cycles_simulated": found["simulated"],
+        "cycles_pursued": found["pursued"],
+        "pursuit_periods": found["pursuit_periods"],
+    }
     clock["attractors"] = time.perf_counter()
     n_att = len(known)
     # each sample's fate: its cycle's attractor; the sink (column n_att) for chains
@@ -133,24 +152,8 @@ def pursuit_basins(
     on_cycle = g["terminal"] >= 0
     f = head_fate[np.searchsorted(heads, g["terminal"][on_cycle])]
     label[on_cycle] = np.where(f >= 0, f, n_att)
-    # number the attractors by their share of the samples, largest first
-    per_att = np.bincount(label, minlength=n_att + 1)[:n_att]
-    rank = np.argsort(-per_att, kind="stable")
-    known = [known[r] for r in rank]
-    relabel = np.append(np.argsort(rank), n_att)
-    label = relabel[label]
-    cell = np.repeat(np.arange(grid.n_cells), samples)
-    shares = np.bincount(cell * (n_att + 1) + label, minlength=grid.n_cells * (n_att + 1))
-    shares = shares.reshape(grid.n_cells, n_att + 1) / samples
-    reach = shares[:, :n_att] > 0
-    n_reach = reach.sum(axis=1)
-    labels = np.where(n_reach == 0, LABEL_ESCAPE, LABEL_BOUNDARY)
-    single = n_reach == 1
-    if n_att:
-        labels[single] = np.argmax(reach[single], axis=1)
-    attractor_of = np.full(grid.n_cells, -1)
-    for k, a in enumerate(known):
-        attractor_of[a.cells] = k
+    t = tally(grid, samples, label, known)
+    label, labels, attractor_of = t["label"], t["labels"], t["attractor_of"]
     where = (labels == LABEL_BOUNDARY) | (attractor_of >= 0)
     fps = fixed_points(smap, grid, points, images, samples, where)
     for p in fps:  # where it lies: a saddle on a basin boundary, or inside an attractor
@@ -158,17 +161,7 @@ def pursuit_basins(
         p["in_attractor"] = int(attractor_of[p["cell"]])
     clock["saddles"] = time.perf_counter()
     total = points.shape[0]
-    motions = []
-    for k, a in enumerate(known):
-        n_k = int(np.sum(label == k))
-        motions.append(
-            {
-                **a.motion,
-                "samples": n_k,
-                "sample_fraction": n_k / total,
-                "neighbourhood_cells": int(a.near.sum()),
-            }
-        )
+    motions = t["motions"]
     image = grid.cell_of(np.nan_to_num(images, nan=np.inf)).reshape(grid.n_cells, samples)
     saddles = [np.array([p["cell"]]) for p in fps if p["saddle"]]
     periods = [int(m.get("period") or 0) for m in motions]
@@ -183,10 +176,10 @@ def pursuit_basins(
         )
     }
     basins = Basins(
-        grid, samples, seed, image, labels, attractor_of, reach, saddles, periods, motions
+        grid, samples, seed, image, labels, attractor_of, t["reach"], saddles, periods, motions
     )
     basins.method = "pursuit"
-    basins.shares = shares
+    basins.shares = t["shares"]
     basins.fixed_points = fps
     basins.fates = label.reshape(grid.n_cells, samples).astype(np.int16)
     basins.info = {"pursuit": stats}
