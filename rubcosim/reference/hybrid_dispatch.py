@@ -45,7 +45,7 @@ def dispatch_source() -> str:
             module, name = _kernel_path(getattr(t.hybrid, field))
             lines.append(f"from {module} import {name} as _{field}_{i}")
     for function, args, field, fallback in _CALLS:
-        lines += ["", "", "@nb.njit(cache=True)", f"def {function}(i, {args}):"]
+        lines += ["", "", '@nb.njit(cache=True, inline="always")', f"def {function}(i, {args}):"]
         for i in range(len(HYBRID_TYPES)):
             call = f"_{field}_{i}({args})"
             body = f"return {call}" if field == "apply" else call
