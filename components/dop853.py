@@ -102,3 +102,20 @@ def next_step(err, h, rejected):
     if not math.isfinite(err):
         return False, h * MIN_FACTOR
     return err < 1.0, h * step_factor(err, rejected)
+
+
+@njit(inline="always")
+def dense_eval(t_old, h, y_old, F, t, out, ncomp):
+    """scipy's DOP853 dense output of the step ``[t_old, t_old + h]`` (coefficients
+    ``F`` from :func:`dense_from_stages`) at time ``t``, first ``ncomp`` components."""
+    x = (t - t_old) / h
+    npow = F.shape[0]
+    for c in range(ncomp):
+        acc = 0.0
+        for i in range(npow):
+            acc += F[npow - 1 - i, c]
+            if i % 2 == 0:
+                acc *= x
+            else:
+                acc *= 1.0 - x
+        out[c] = acc + y_old[c]

@@ -6,11 +6,11 @@ own state ``y``, its discrete mode and its parameter array ``p`` (packed by
 
 * ``rhs(t, y, mode, p, dy)``: the vector field in ``mode``;
 * ``events(t, y, mode, p, g, dirs, rates)``: event functions in up to
-  :data:`N_EVENTS` slots (the caller fills every slot with ``g = 1``,
+  :data:`.hybrid_dispatch.N_EVENTS` slots (the caller fills every slot with ``g = 1``,
   ``dirs = 0``, ``rates = -1`` first); ``dirs[k]`` -1 falling, +1 rising, 2
   either; ``rates[k]`` the slot holding g_k's time derivative, or -1;
 * ``apply(k, t, y, mode, p)``: the event map of slot ``k`` (changes ``y`` in
-  place), returning ``(new mode, event kind)`` (:data:`KIND_NAMES`);
+  place), returning ``(new mode, event kind)`` (:data:`.hybrid_dispatch.KIND_NAMES`);
 * ``outputs(t, y, mode, p, out)``: the outputs named by ``outputs``.
 
 Inputs (``inputs``, real signals of the unit class) reach the kernels through
@@ -20,7 +20,7 @@ them).  :class:`HybridUnit` writes them before every step; the reference,
 where the unit is the whole model, leaves them at zero.
 
 The monolithic reference compiles these kernels into its engines
-(:mod:`rubcosim.reference.hybrid_dispatch`); :class:`HybridUnit` steps the
+(:mod:`.hybrid_dispatch`); :class:`HybridUnit` steps the
 same kernels as a co-simulation unit (and so as an FMU).  The physics of such
 a unit type is therefore written exactly once.
 """
@@ -33,15 +33,11 @@ from typing import Any, ClassVar
 
 import numpy as np
 
+from .hybrid_dispatch import hybrid_types
 from .jit import njit
 from .kernels import polynomial_at
-from .stepping import event, integrate
+from .stepping import step_hybrid
 from .unit import Unit
-
-N_EVENTS = 4
-KIND_BREAK, KIND_IMPACT, KIND_RELEASE, KIND_SLIP, KIND_CONTACT_ON, KIND_CONTACT_OFF = range(6)
-KIND_NAMES = ("breakpoint", "impact", "release", "slip", "contact_on", "contact_off")
-MAX_EVENTS_PER_STEP = 100_000
 
 
 @dataclass(frozen=True)
@@ -79,56 +75,24 @@ def input_value(p: np.ndarray, base: int, i: int, t: float) -> float:
     return polynomial_at(p[j], p[j + 1], p[j + 2], t - p[base])
 
 
-def event_slots(
-    kernels: HybridKernels, t: float, y: np.ndarray, mode: int, p: np.ndarray
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The event functions, their directions and rate slots of ``mode`` at (t, y)."""
-    g = np.ones(N_EVENTS)
-    dirs = np.zeros(N_EVENTS, dtype=np.int64)
-    rates = np.full(N_EVENTS, -1, dtype=np.int64)
-    kernels.events(t, y, mode, p, g, dirs, rates)
-    return g, dirs, rates
-
-
 class HybridUnit(Unit):
     """A co-simulation unit stepping a hybrid unit type's kernels.
 
-    Inside a communication step the kernels' events are located (as terminal
-    events of the DOP853 integration) and their map applied, so every impact
-    and every change of mode happens at its own time, whatever the step.
-    Subclasses set ``kernels`` and the usual unit declarations.
+    Inside a communication step the kernels' events are located and their map
+    applied (:func:`.stepping.advance`), so every impact and every change of
+    mode happens at its own time, whatever the step.  Subclasses set
+    ``kernels`` and the usual unit declarations.
     """
 
     kernels: ClassVar[HybridKernels]
     feedthrough = False
+    _index = -1  # the type's index among the hybrid types (of the stepper's dispatch)
 
     def _initial_state(self) -> dict[str, Any]:
         y0, mode0 = self.kernels.initial(self.params)
+        self._index = [t.hybrid for t in hybrid_types()].index(self.kernels)
         self._p = self.kernels.parameters(self.params)
         return {"y": np.array(y0, dtype=float), "h": 0.0, "mode": int(mode0), "impacts": 0}
-
-    def _rhs(self, mode: int) -> Callable[[float, np.ndarray], np.ndarray]:
-        def rhs(t: float, y: np.ndarray) -> np.ndarray:
-            dy = np.empty(y.shape[0])
-            self.kernels.rhs(t, y, mode, self._p, dy)
-            return dy
-
-        return rhs
-
-    def _events(self, t: float, y: np.ndarray, mode: int) -> list[tuple[int, Any]]:
-        _, dirs, _ = event_slots(self.kernels, t, y, mode, self._p)
-        found = []
-        for k in range(N_EVENTS):
-            # a breakpoint (dirs 2: a kink of the vector field, no jump) is integrated
-            # through here; the reference engines step onto it
-            if dirs[k] == 0 or dirs[k] == 2:
-                continue
-
-            def g(tt: float, yy: np.ndarray, k: int = k) -> float:
-                return float(event_slots(self.kernels, tt, yy, mode, self._p)[0][k])
-
-            found.append((k, event(g, float(dirs[k]))))
-        return found
 
     def _set_input_slots(self, t: float) -> None:
         base = self.kernels.input_base
@@ -139,31 +103,11 @@ class HybridUnit(Unit):
 
     def _advance(self, t: float, h: float) -> None:
         q, st = self.params, self.state
-        t_end = t + h
         self._set_input_slots(t)
-        for _ in range(MAX_EVENTS_PER_STEP):
-            if t >= t_end:
-                return
-            slots = self._events(t, st["y"], st["mode"])
-            seg = integrate(
-                self._rhs(st["mode"]),
-                t,
-                t_end,
-                st["y"],
-                q["rtol"],
-                q["atol"],
-                st["h"],
-                [e for _, e in slots],
-            )
-            t, st["y"], st["h"] = seg.t, seg.y, seg.h_next
-            if seg.event < 0:
-                return
-            y = np.array(st["y"])
-            mode, kind = self.kernels.apply(slots[seg.event][0], t, y, st["mode"], self._p)
-            st["y"], st["mode"] = y, int(mode)
-            if kind == KIND_IMPACT:
-                st["impacts"] += 1
-        raise RuntimeError(f"more than {MAX_EVENTS_PER_STEP} events in one step")
+        st["y"], st["mode"], impacts, st["h"] = step_hybrid(
+            self._index, t, t + h, st["y"], st["mode"], st["h"], self._p, q["rtol"], q["atol"]
+        )
+        st["impacts"] += impacts
 
     def _derived(self, values: Mapping[str, float]) -> dict[str, float]:
         """Outputs a subclass derives from the kernels' (and ``mode``); none here."""

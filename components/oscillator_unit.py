@@ -18,15 +18,8 @@ from typing import Any
 import numpy as np
 
 from .declaration import FmuIdentity, State, UnitType
-from .hybrid import (
-    KIND_CONTACT_OFF,
-    KIND_CONTACT_ON,
-    KIND_IMPACT,
-    KIND_RELEASE,
-    HybridKernels,
-    HybridUnit,
-    input_value,
-)
+from .hybrid import HybridKernels, HybridUnit, input_value
+from .hybrid_dispatch import KIND_CONTACT_OFF, KIND_CONTACT_ON, KIND_IMPACT, KIND_RELEASE
 from .jit import njit
 from .oscillator import (
     OSCILLATOR_PARAMS,

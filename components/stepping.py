@@ -1,105 +1,228 @@
-"""Integrate a unit's ODE across one communication step.
+"""Step a unit across one communication step: one compiled DOP853 driver for every unit.
 
-Two integrators, both DOP853:
+:func:`advance` integrates a unit's state from ``t0`` to ``t_end``:
 
-* :func:`advance`, compiled: the ODE of a unit kind from :mod:`.unit_odes`
-  with its inputs as polynomials over the step; no events.  This is what
-  the rotors and the casing stator use (through :func:`step_ode`, which hands
-  the same right-hand side to scipy where numba is not in use);
-* :func:`integrate`, scipy's ``solve_ivp``: any Python right-hand side with
-  terminal events (the single-DOF oscillator locates its impacts inside a
-  step with it).
+* an ODE unit (the rotors, the casing stator; ``kind`` of :mod:`.unit_odes`)
+  with its inputs as polynomials over the step, no events;
+* a hybrid unit (``kind = HYBRID + i``, hybrid type ``i`` of
+  :mod:`.hybrid_dispatch`): its vector field in its current mode, its event
+  functions checked after every accepted step, a crossing located on the
+  step's dense output by the one event locator (:mod:`.root_finding`) and the
+  type's event map applied there, so every impact and change of mode happens
+  at its own time, whatever the communication step.
 
-Both return the step size to start the next communication step with, which
-the unit keeps in its state: no fresh initial-step guess each time, and a
-restored snapshot re-steps bit-identically.
+The Runge-Kutta step, error norm, controller and dense output are those of
+:mod:`.dop853`, shared with the reference engines.  The step size to start
+the next communication step with is returned, and the unit keeps it in its
+state: no fresh initial-step guess each time, and a restored snapshot
+re-steps bit-identically.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
-from dataclasses import dataclass
-
 import numpy as np
-from scipy.integrate import solve_ivp
 
-from .dop853 import N_STAGES, C, error_norm, next_step, solution_point, stage_point
+from . import hybrid_dispatch
+from .dop853 import (
+    N_EXT,
+    N_STAGES,
+    C,
+    dense_eval,
+    dense_from_stages,
+    error_norm,
+    next_step,
+    solution_point,
+    stage_point,
+)
+from .hybrid_dispatch import KIND_IMPACT, N_EVENTS
 from .jit import USE_NUMBA, njit
+from .root_finding import F_CUR, MAX_TRIALS, X_CUR, bracket, crossed_end
+from .root_finding import advance as brent_advance
 from .unit_odes import unit_rhs
 
-Rhs = Callable[[float, np.ndarray], np.ndarray]
-EventFunction = Callable[[float, np.ndarray], float]
+HYBRID = 1000  # unit kinds from here on are hybrid unit types (kind - HYBRID)
+NO_INPUTS = np.zeros((0, 3))  # the input rows of a hybrid unit (its inputs live in p)
 
 OK = 0
 STEP_TOO_SMALL = 1
 NOT_FINITE = 2
+TOO_MANY_EVENTS = 3
+MAX_EVENTS_PER_STEP = 100_000
+
+
+@njit(inline="always")
+def _rhs(kind, t, y, mode, p, u, t0, dy):
+    if kind >= HYBRID:
+        hybrid_dispatch.hybrid_rhs(kind - HYBRID, t, y, mode, p, dy)
+    else:
+        unit_rhs(kind, t, y, p, u, t0, dy)
+
+
+@njit(inline="always")
+def _events(kind, t, y, mode, p, g, dirs, rates):
+    """Event functions of ``mode`` (slots without an event: g = 1, direction 0)."""
+    for k in range(N_EVENTS):
+        g[k] = 1.0
+        dirs[k] = 0
+        rates[k] = -1
+    if kind >= HYBRID:
+        hybrid_dispatch.hybrid_events(kind - HYBRID, t, y, mode, p, g, dirs, rates)
 
 
 @njit
-def _rk_step(kind, t, y, f, h, p, u, t0, K, y_new, f_new, ytmp, dy):
+def _rk_step(kind, t, y, f, h, mode, p, u, t0, K, y_new, f_new, ytmp, dy):
     n = y.shape[0]
     for i in range(n):
         K[0, i] = f[i]
     for s in range(1, N_STAGES):
         stage_point(K, s, y, h, ytmp)
-        unit_rhs(kind, t + C[s] * h, ytmp, p, u, t0, dy)
+        _rhs(kind, t + C[s] * h, ytmp, mode, p, u, t0, dy)
         for i in range(n):
             K[s, i] = dy[i]
     solution_point(K, y, h, y_new)
-    unit_rhs(kind, t + h, y_new, p, u, t0, f_new)
+    _rhs(kind, t + h, y_new, mode, p, u, t0, f_new)
     for i in range(n):
         K[N_STAGES, i] = f_new[i]
 
 
 @njit
-def advance(kind, t0, t_end, y, h, p, u, rtol, atol):
+def _crossing(direction, ga, gb):
+    """Sign ``s`` that makes ``s * g`` fall through zero for a crossing of the event's
+    ``direction`` between step ends ``ga``, ``gb`` (scipy's rule, touching counts);
+    0 when there is none. Breakpoints (direction 2) are integrated through: a kink of
+    the vector field without a jump, which the step-size control absorbs."""
+    if direction == -1 and ga >= 0.0 and gb <= 0.0:
+        return 1.0
+    if direction == 1 and ga <= 0.0 and gb >= 0.0:
+        return -1.0
+    return 0.0
+
+
+@njit
+def _first_event(kind, t, h, y, F, mode, p, g_a, dirs, g_b, ybuf, g, dirs_s, rates_s):
+    """The earliest located event in the accepted step ``[t, t + h]``: ``(slot, time)``,
+    slot -1 when no event function crossed."""
+    slot, t_event = -1, t + h
+    tol = 4.0 * np.finfo(np.float64).eps * max(abs(t), abs(t + h), 1.0)
+    for k in range(N_EVENTS):
+        sgn = _crossing(dirs[k], g_a[k], g_b[k])
+        if sgn == 0.0:
+            continue
+        if sgn * g_a[k] == 0.0:
+            te = t  # on the surface already, moving through it
+        else:
+            s = bracket(t, sgn * g_a[k], t + h, sgn * g_b[k], tol)
+            for _ in range(MAX_TRIALS):
+                if brent_advance(s):
+                    break
+                dense_eval(t, h, y, F, s[X_CUR], ybuf, ybuf.shape[0])
+                _events(kind, s[X_CUR], ybuf, mode, p, g, dirs_s, rates_s)
+                s[F_CUR] = sgn * g[k]
+            te = crossed_end(s)
+        if te < t_event or slot < 0:
+            slot, t_event = k, te
+    return slot, t_event
+
+
+@njit
+def advance(kind, t0, t_end, y, mode, h, p, u, rtol, atol):
     """Integrate unit ``kind`` from ``t0`` to ``t_end`` (s), updating ``y`` in place.
 
-    ``h`` is the step to try first (<= 0: the whole span), ``p`` the kind's
-    parameter array, ``u`` the input rows (value, d1, d2) at ``t0``.  Returns
-    ``(h_next, status)``: the step to try next, and :data:`OK`,
-    :data:`STEP_TOO_SMALL` or :data:`NOT_FINITE` (``y`` is then partly advanced;
-    the caller restores it).
+    ``mode`` is a hybrid unit's discrete mode (0 for an ODE unit), ``h`` the step to
+    try first (<= 0: the whole span), ``p`` the kind's parameter array, ``u`` the
+    input rows (value, d1, d2) at ``t0`` of an ODE unit.  Returns ``(h_next, mode,
+    impacts, status)``: the step to try next, the mode at ``t_end``, the impacts
+    applied, and :data:`OK`, :data:`STEP_TOO_SMALL`, :data:`NOT_FINITE` or
+    :data:`TOO_MANY_EVENTS` (``y`` is then partly advanced; the caller restores it).
     """
     n = y.shape[0]
-    K = np.empty((N_STAGES + 1, n))
+    K = np.empty((N_EXT, n))
+    F = np.empty((7, n))
     f = np.empty(n)
     f_new = np.empty(n)
     y_new = np.empty(n)
     ytmp = np.empty(n)
     dy = np.empty(n)
     tol = np.full(n, atol)
-    unit_rhs(kind, t0, y, p, u, t0, f)
+    g_a, g_b, g = np.empty(N_EVENTS), np.empty(N_EVENTS), np.empty(N_EVENTS)
+    dirs, dirs_b = np.empty(N_EVENTS, np.int64), np.empty(N_EVENTS, np.int64)
+    rates = np.empty(N_EVENTS, np.int64)
+    _rhs(kind, t0, y, mode, p, u, t0, f)
+    _events(kind, t0, y, mode, p, g_a, dirs, rates)
     t = t0
     if h <= 0.0:
         h = t_end - t0
     rejected = False
+    impacts = 0
+    n_events = 0
     while t < t_end:
         min_step = 10.0 * abs(np.nextafter(t, np.inf) - t)
         if h < min_step:
-            return h, STEP_TOO_SMALL
+            return h, mode, impacts, STEP_TOO_SMALL
         t_new = t + h
         clipped = t_new >= t_end
         if clipped:
             t_new = t_end
         hs = t_new - t
-        _rk_step(kind, t, y, f, hs, p, u, t0, K, y_new, f_new, ytmp, dy)
+        _rk_step(kind, t, y, f, hs, mode, p, u, t0, K, y_new, f_new, ytmp, dy)
         accepted, h_proposed = next_step(error_norm(K, hs, y, y_new, rtol, tol), hs, rejected)
         if not accepted:
             h = h_proposed
             rejected = True
             continue
+        rejected = False
+        if kind >= HYBRID:
+            _events(kind, t_new, y_new, mode, p, g_b, dirs_b, rates)
+            slot, t_event = -1, t_new
+            for k in range(N_EVENTS):
+                if _crossing(dirs[k], g_a[k], g_b[k]) != 0.0:
+                    for s in range(N_STAGES + 1, N_EXT):
+                        stage_point(K, s, y, hs, ytmp)
+                        _rhs(kind, t + C[s] * hs, ytmp, mode, p, u, t0, dy)
+                        for i in range(n):
+                            K[s, i] = dy[i]
+                    dense_from_stages(hs, y, y_new, f_new, K, F)
+                    slot, t_event = _first_event(
+                        kind, t, hs, y, F, mode, p, g_a, dirs, g_b, ytmp, g, dirs_b, rates
+                    )
+                    break
+            if slot >= 0:
+                n_events += 1
+                if n_events > MAX_EVENTS_PER_STEP:
+                    return h_proposed, mode, impacts, TOO_MANY_EVENTS
+                dense_eval(t, hs, y, F, t_event, ytmp, n)
+                for i in range(n):
+                    y[i] = ytmp[i]
+                t = t_event
+                mode, event_kind = hybrid_dispatch.hybrid_apply(kind - HYBRID, slot, t, y, mode, p)
+                if event_kind == KIND_IMPACT:
+                    impacts += 1
+                _rhs(kind, t, y, mode, p, u, t0, f)
+                _events(kind, t, y, mode, p, g_a, dirs, rates)
+                h = h_proposed
+                continue
+            for k in range(N_EVENTS):
+                g_a[k] = g_b[k]
+                dirs[k] = dirs_b[k]
         for i in range(n):
             y[i] = y_new[i]
             f[i] = f_new[i]
         t = t_new
-        rejected = False
         # a step cut short by the end of the span says nothing against the one proposed
         h = max(h_proposed, h) if clipped else h_proposed
     for i in range(n):
         if not np.isfinite(y[i]):
-            return h, NOT_FINITE
-    return h, OK
+            return h, mode, impacts, NOT_FINITE
+    return h, mode, impacts, OK
+
+
+def _raise_on(status: int, t0: float, t_end: float) -> None:
+    if status == STEP_TOO_SMALL:
+        raise RuntimeError(f"step size below round-off between t = {t0} and {t_end}")
+    if status == NOT_FINITE:
+        raise RuntimeError(f"state not finite between t = {t0} and {t_end}")
+    if status == TOO_MANY_EVENTS:
+        raise RuntimeError(f"more than {MAX_EVENTS_PER_STEP} events between t = {t0} and {t_end}")
 
 
 def step_ode(
@@ -113,81 +236,58 @@ def step_ode(
     rtol: float,
     atol: float,
 ) -> tuple[np.ndarray, float]:
-    """:func:`advance` on a copy of ``y``; returns ``(y at t_end, h_next)`` and raises
-    ``RuntimeError`` naming the time when the integration fails.
+    """:func:`advance` of an ODE unit on a copy of ``y``; returns ``(y at t_end, h_next)``
+    and raises ``RuntimeError`` naming the time when the integration fails.
 
     Without numba (inside an FMU by default) the same right-hand side goes to scipy's
-    DOP853 instead: the element-wise loops of :func:`advance` are fast only compiled.
+    DOP853 instead: the element-wise loops of :func:`advance` are fast only compiled,
+    and an ODE unit has no event to locate.
     """
     if not USE_NUMBA:
-        dy = np.empty(len(y))
-
-        def rhs(t: float, state: np.ndarray) -> np.ndarray:
-            unit_rhs(kind, t, state, p, u, t0, dy)
-            return dy.copy()
-
-        seg = integrate(rhs, t0, t_end, y, rtol, atol, h)
-        return seg.y, seg.h_next
+        return _scipy_step(kind, t0, t_end, y, h, p, u, rtol, atol)
     y_new = np.array(y, dtype=float)
-    h_next, status = advance(kind, t0, t_end, y_new, h, p, u, rtol, atol)
-    if status == STEP_TOO_SMALL:
-        raise RuntimeError(f"step size below round-off between t = {t0} and {t_end}")
-    if status == NOT_FINITE:
-        raise RuntimeError(f"state not finite between t = {t0} and {t_end}")
+    h_next, _, _, status = advance(kind, t0, t_end, y_new, 0, h, p, u, rtol, atol)
+    _raise_on(status, t0, t_end)
     return y_new, float(h_next)
 
 
-@dataclass
-class Segment:
-    """Result of :func:`integrate`: where it stopped and why."""
-
-    t: float
-    y: np.ndarray
-    h_next: float
-    event: int  # index of the terminal event that stopped it, -1 if it reached t_end
-
-
-def integrate(
-    rhs: Rhs,
+def step_hybrid(
+    index: int,
     t0: float,
     t_end: float,
-    y0: np.ndarray,
+    y: np.ndarray,
+    mode: int,
+    h: float,
+    p: np.ndarray,
     rtol: float,
     atol: float,
-    h_first: float = 0.0,
-    events: Sequence[EventFunction] = (),
-) -> Segment:
-    """Integrate from ``t0`` to ``t_end`` or to the first terminal event.
-
-    ``events`` are scipy-style event functions; each must carry ``terminal``
-    and ``direction`` attributes.  ``h_first <= 0`` lets the solver choose.
-    """
-    if t_end <= t0:
-        return Segment(t0, np.array(y0, dtype=float), h_first, -1)
-    span = t_end - t0
-    first = min(h_first, span) if h_first > 0.0 else None
-    sol = solve_ivp(
-        rhs,
-        (t0, t_end),
-        np.asarray(y0, dtype=float),
-        method="DOP853",
-        rtol=rtol,
-        atol=atol,
-        first_step=first,
-        events=list(events) or None,
+) -> tuple[np.ndarray, int, int, float]:
+    """:func:`advance` of hybrid unit type ``index`` on a copy of ``y``; returns
+    ``(y at t_end, mode, impacts applied, h_next)``, raising ``RuntimeError`` naming
+    the time when the integration fails."""
+    y_new = np.array(y, dtype=float)
+    h_next, mode, impacts, status = advance(
+        HYBRID + index, t0, t_end, y_new, mode, h, p, NO_INPUTS, rtol, atol
     )
+    _raise_on(status, t0, t_end)
+    return y_new, int(mode), int(impacts), float(h_next)
+
+
+def _scipy_step(kind, t0, t_end, y, h, p, u, rtol, atol):
+    from scipy.integrate import solve_ivp
+
+    if t_end <= t0:
+        return np.array(y, dtype=float), h
+    dy = np.empty(len(y))
+
+    def rhs(t: float, state: np.ndarray) -> np.ndarray:
+        unit_rhs(kind, t, state, p, u, t0, dy)
+        return dy.copy()
+
+    first = min(h, t_end - t0) if h > 0.0 else None
+    sol = solve_ivp(rhs, (t0, t_end), np.asarray(y, float), "DOP853", rtol=rtol, atol=atol,
+                    first_step=first)  # fmt: skip
     if sol.status < 0:
         raise RuntimeError(f"integration failed at t = {sol.t[-1]}: {sol.message}")
-    h_next = float(sol.t[-1] - sol.t[-2]) if sol.t.size > 1 else h_first
-    if sol.status == 1:
-        for k, times in enumerate(sol.t_events):
-            if times.size:
-                return Segment(float(times[0]), sol.y_events[k][0].copy(), h_next, k)
-    return Segment(float(sol.t[-1]), sol.y[:, -1].copy(), h_next, -1)
-
-
-def event(function: EventFunction, direction: float = 0.0) -> EventFunction:
-    """Mark ``function`` as a terminal event with the given crossing direction."""
-    function.terminal = True  # type: ignore[attr-defined]
-    function.direction = direction  # type: ignore[attr-defined]
-    return function
+    h_next = float(sol.t[-1] - sol.t[-2]) if sol.t.size > 1 else h
+    return sol.y[:, -1].copy(), h_next

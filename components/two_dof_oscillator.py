@@ -27,7 +27,8 @@ from typing import Any
 import numpy as np
 
 from .declaration import FmuIdentity, State, UnitType
-from .hybrid import KIND_IMPACT, KIND_RELEASE, HybridKernels, HybridUnit, input_value
+from .hybrid import HybridKernels, HybridUnit, input_value
+from .hybrid_dispatch import KIND_IMPACT, KIND_RELEASE
 from .jit import njit
 from .oscillator import barrier_gap, pressing, stop_impact
 from .parameters import ParameterError, nonnegative, positive, real

@@ -6,6 +6,7 @@ import math
 
 import numpy as np
 import pytest
+from scipy.integrate import solve_ivp
 
 from rubcosim.components import jit, unit_odes
 from rubcosim.components.bearing import oilfilm_force, oilfilm_sigma
@@ -15,7 +16,7 @@ from rubcosim.components.controller_unit import lagrange_cubic
 from rubcosim.components.parameters import ParameterError
 from rubcosim.components.rotor import free_whirl, jeffcott_force
 from rubcosim.components.stator import penalty_contact_force, rigid_impact
-from rubcosim.components.stepping import event, integrate, step_ode
+from rubcosim.components.stepping import step_ode
 from rubcosim.components.unit import StepError, Unit
 from rubcosim.components.units import UNIT_CLASSES, make_unit, unit_class
 from rubcosim.fmus.build import MODEL_IDENTIFIERS
@@ -361,14 +362,21 @@ def test_oscillator_sticks_after_chattering_and_is_released():
     assert seen_stuck and seen_free_after and unit.get_outputs()["impacts"] > 5
 
 
-def test_integrate_stops_at_a_terminal_event():
-    seg = integrate(lambda t, y: np.array([1.0]), 0.0, 2.0, np.array([0.0]), 1e-10, 1e-12,
-                    events=[event(lambda t, y: y[0] - 0.5, 1.0)])  # fmt: skip
-    assert seg.event == 0 and seg.t == pytest.approx(0.5) and seg.y[0] == pytest.approx(0.5)
-    seg = integrate(lambda t, y: -y, 0.0, 1.0, np.array([1.0]), 1e-10, 1e-12)
-    assert seg.event == -1 and seg.y[0] == pytest.approx(math.exp(-1.0), rel=1e-9)
-    assert seg.h_next > 0
-    assert integrate(lambda t, y: y, 1.0, 1.0, np.array([2.0]), 1e-8, 0.0).y[0] == 2.0
+def test_hybrid_unit_locates_an_impact_inside_one_step_to_the_closed_form():
+    # x'' = -x from (0, 1) against a barrier at 0.5: x = sin t reaches it at t1 = pi/6
+    # with v = cos t1, leaves with -R v, and is x = 0.5 cos(t - t1) - R v sin(t - t1) after
+    r = 0.8
+    unit = make_unit("oscillator", "impact_oscillator", linear_stiffness=1.0,
+                     forcing_amplitude=0.0, forcing_frequency=1.0, barrier=0.5, restitution=r,
+                     x0=0.0, v0=1.0,
+                     rtol=1e-12, atol=1e-14)  # fmt: skip
+    unit.do_step(0.0, 1.5)  # one communication step across the impact
+    t1, v1 = math.pi / 6, math.cos(math.pi / 6)
+    s = 1.5 - t1
+    o = unit.get_outputs()
+    assert o["impacts"] == 1
+    assert o["x"] == pytest.approx(0.5 * math.cos(s) - r * v1 * math.sin(s), abs=1e-11)
+    assert o["v"] == pytest.approx(-0.5 * math.sin(s) - r * v1 * math.cos(s), abs=1e-11)
 
 
 def test_compiled_unit_step_matches_scipy_with_polynomial_inputs():
@@ -386,7 +394,7 @@ def test_compiled_unit_step_matches_scipy_with_polynomial_inputs():
         m = q["mass"]
         return np.array([y[2], y[3], (fx + 3.0 + 40.0 * s + 500.0 * s * s) / m, (fy - 2.0) / m])
 
-    want = integrate(rhs, t0, t1, y0, 1e-12, 1e-16).y
+    want = solve_ivp(rhs, (t0, t1), y0, "DOP853", rtol=1e-12, atol=1e-16).y[:, -1]
     got, h_next = step_ode(unit_odes.JEFFCOTT, t0, t1, y0, 0.0, p, u, 1e-12, 1e-16)
     assert np.allclose(got, want, rtol=1e-9, atol=1e-14) and h_next > 0.0
     assert np.array_equal(y0, [1e-5, -2e-5, 3e-3, 1e-3])  # the caller's state is untouched

@@ -11,12 +11,12 @@ import numpy as np
 from rubcosim.components.bearing import oilfilm_sigma
 from rubcosim.components.controller import base_delay
 from rubcosim.components.graph import ModelGraph, UnitNode, model_scales
+from rubcosim.components.hybrid_dispatch import hybrid_types
 from rubcosim.components.parameters import ParameterError
 from rubcosim.components.registry import REGISTRY
 from rubcosim.components.stator import damping_from_restitution, reduced_mass
 
 from . import system as S
-from .hybrid_dispatch import HYBRID_TYPES
 
 # Relative size of the rebound normal speed (to the system's velocity scale)
 # below which chattering is declared over and the contact becomes sustained.
@@ -84,7 +84,7 @@ def build_system(
 
 
 def _hybrid_system(u: UnitNode, chatter_tol: float) -> System:
-    """A hybrid unit type's kernels as the system (:mod:`.hybrid_dispatch`)."""
+    """A hybrid unit type's kernels as the system (:mod:`rubcosim.components.hybrid_dispatch`)."""
     declared = u.declaration
     kernels = declared.hybrid
     params = {**u.params, "chatter_tol": chatter_tol}
@@ -93,7 +93,7 @@ def _hybrid_system(u: UnitNode, chatter_tol: float) -> System:
     p = np.zeros(max(S.N_P, packed.size))
     p[: packed.size] = packed
     ip = np.zeros(S.N_IP, dtype=np.int64)
-    ip[S.IP_FAMILY] = S.FAMILY_HYBRID + HYBRID_TYPES.index(declared)
+    ip[S.IP_FAMILY] = S.FAMILY_HYBRID + hybrid_types().index(declared)
     ip[S.IP_NSTATE] = len(y0)
     ip[S.IP_JOURNAL] = -1
     ip[S.IP_CASING] = -1

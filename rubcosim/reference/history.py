@@ -15,6 +15,8 @@ import math
 import numba as nb
 import numpy as np
 
+from rubcosim.components.dop853 import dense_eval
+
 from .system import (
     CONTROL_NONE,
     FAMILY_ROTOR,
@@ -33,22 +35,6 @@ from .system import (
 HM_START, HM_COUNT, HM_OVERFLOW = 0, 1, 2
 # queue meta: start, count, dropped
 Q_START, Q_COUNT, Q_DROPPED = 0, 1, 2
-
-
-@nb.njit(cache=True, inline="always")
-def dense_eval(t_old, h, y_old, F, t, out, ncomp):
-    """Evaluate scipy's DOP853 dense output on the first ``ncomp`` components."""
-    x = (t - t_old) / h
-    npow = F.shape[0]
-    for c in range(ncomp):
-        acc = 0.0
-        for i in range(npow):
-            acc += F[npow - 1 - i, c]
-            if i % 2 == 0:
-                acc *= x
-            else:
-                acc *= 1.0 - x
-        out[c] = acc + y_old[c]
 
 
 # ---------------------------------------------------------------- history

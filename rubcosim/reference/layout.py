@@ -9,7 +9,7 @@ Event kinds name what an event did (:data:`KIND_NAMES`).  Re-exported by
 from __future__ import annotations
 
 # Event kinds and the number of event slots are shared with the hybrid unit types.
-from rubcosim.components.hybrid import (  # noqa: F401
+from rubcosim.components.hybrid_dispatch import (  # noqa: F401
     KIND_BREAK,
     KIND_CONTACT_OFF,
     KIND_CONTACT_ON,
@@ -21,7 +21,7 @@ from rubcosim.components.hybrid import (  # noqa: F401
 )
 
 FAMILY_ROTOR = 0
-FAMILY_HYBRID = 1  # hybrid unit type i (rubcosim.reference.hybrid_dispatch) is 1 + i
+FAMILY_HYBRID = 1  # hybrid unit type i (rubcosim.components.hybrid_dispatch) is 1 + i
 
 # ip layout
 IP_FAMILY = 0

@@ -14,7 +14,7 @@ rigid, elastic or casing; bearing none, linear or oil film (two-mass rotor);
 delayed-feedback controller on the disc.
 ``FAMILY_HYBRID + i``: the hybrid unit type i of the registry, a whole model whose
 own kernels hold its physics (the impact oscillators;
-:mod:`.hybrid_dispatch`).
+:mod:`rubcosim.components.hybrid_dispatch`).
 
 Discrete modes
 --------------
@@ -45,6 +45,13 @@ import numpy as np
 
 from rubcosim.components.bearing import linear_bearing_force, oilfilm_force
 from rubcosim.components.controller import delay_at, feedback_force
+from rubcosim.components.hybrid_dispatch import (
+    hybrid_apply,
+    hybrid_events,
+    hybrid_output_names,
+    hybrid_outputs,
+    hybrid_rhs,
+)
 from rubcosim.components.kernels import planar_newton
 from rubcosim.components.rotor import jeffcott_force, journal_force, two_mass_disc_force
 from rubcosim.components.stator import (
@@ -61,14 +68,6 @@ from rubcosim.components.stator import (
     rigid_impact,
     settle_mode,
     sticking_friction,
-)
-
-from .hybrid_dispatch import (
-    hybrid_apply,
-    hybrid_events,
-    hybrid_output_names,
-    hybrid_outputs,
-    hybrid_rhs,
 )
 
 # The array layout is part of this module's interface (``system as S; S.P_M``), so
