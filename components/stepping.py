@@ -20,6 +20,8 @@ re-steps bit-identically.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from . import hybrid_dispatch
@@ -99,6 +101,26 @@ def _crossing(direction, ga, gb):
 
 
 @njit
+def _left_side(kind, k, sgn, t, h, y, F, mode, p, ybuf, g, dirs, rates):
+    """``(t_s, sgn * g_k(t_s))`` for the latest of the points ``t + h / 2**i``
+    (i = 52..1) with ``sgn * g_k > 0`` before the first one with ``sgn * g_k < 0``:
+    the left end of the bracket of a rebound's return; ``(t, 0)`` if g does not
+    leave the surface."""
+    ts, fs = t, 0.0
+    for i in range(52, 0, -1):
+        tm = t + math.ldexp(h, -i)
+        if tm <= ts:
+            continue
+        dense_eval(t, h, y, F, tm, ybuf, ybuf.shape[0])
+        _events(kind, tm, ybuf, mode, p, g, dirs, rates)
+        if sgn * g[k] < 0.0:
+            break
+        if sgn * g[k] > 0.0:  # zero: within round-off of the surface, undecided
+            ts, fs = tm, sgn * g[k]
+    return ts, fs
+
+
+@njit
 def _first_event(kind, t, h, y, F, mode, p, g_a, dirs, g_b, ybuf, g, dirs_s, rates_s):
     """The earliest located event in the accepted step ``[t, t + h]``: ``(slot, time)``,
     slot -1 when no event function crossed."""
@@ -108,10 +130,16 @@ def _first_event(kind, t, h, y, F, mode, p, g_a, dirs, g_b, ybuf, g, dirs_s, rat
         sgn = _crossing(dirs[k], g_a[k], g_b[k])
         if sgn == 0.0:
             continue
-        if sgn * g_a[k] == 0.0:
-            te = t  # on the surface already, moving through it
+        ta, fa = t, sgn * g_a[k]
+        if fa == 0.0:
+            # the step starts on the surface (just after an impact map): the crossing is
+            # the return of a rebound shorter than the step, or, if it does not leave,
+            # the start itself
+            ta, fa = _left_side(kind, k, sgn, t, h, y, F, mode, p, ybuf, g, dirs_s, rates_s)
+        if fa <= 0.0:
+            te = ta
         else:
-            s = bracket(t, sgn * g_a[k], t + h, sgn * g_b[k], tol)
+            s = bracket(ta, fa, t + h, sgn * g_b[k], tol)
             for _ in range(MAX_TRIALS):
                 if brent_advance(s):
                     break

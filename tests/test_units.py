@@ -436,3 +436,23 @@ def test_input_polynomial_in_one_call():
 
 def test_kernels_are_compiled_in_the_installed_package():
     assert jit.USE_NUMBA
+
+
+def test_hybrid_unit_finds_rebounds_shorter_than_its_step_to_the_closed_form():
+    # a mass pushed onto the stop by a constant force f = 1 (w ~ 0), leaving it at
+    # speed 1: rebound n lasts 2 R^(n-1) / f, so impact n is at t_n = 4 (1 - R^n) for
+    # R = 0.5; with steps of 1, rebounds 3 to 5 (0.5, 0.25, 0.125) start and end
+    # inside one step, and the first starts on the stop (the event function is 0)
+    r, barrier = 0.5, 0.5
+    unit = make_unit("oscillator", "impact_oscillator", linear_stiffness=0.0,
+                     forcing_amplitude=1.0, forcing_frequency=1e-9, barrier=barrier,
+                     restitution=r, x0=barrier, v0=-1.0, rtol=1e-12, atol=1e-14)  # fmt: skip
+    for i in range(3):
+        unit.do_step(float(i), 1.0)
+    unit.do_step(3.0, 0.9)
+    t5, v5 = 4.0 * (1.0 - r**5), r**5  # the 5th impact and the speed it leaves with
+    s = 3.9 - t5
+    o = unit.get_outputs()
+    assert o["impacts"] == 5
+    assert o["x"] == pytest.approx(barrier - v5 * s + 0.5 * s * s, abs=1e-10)
+    assert o["v"] == pytest.approx(-v5 + s, abs=1e-10)
