@@ -16,6 +16,10 @@ class SettingsError(ValueError):
     """A ``[cosim]`` value is invalid; the message names ``cosim.key``."""
 
 
+# rebounds slower than this (relative to the velocity scale) the master cannot resolve
+MIN_CHATTER_TOL = 1e-7
+
+
 @dataclass(frozen=True)
 class CosimSettings:
     """How the master couples the units.
@@ -38,16 +42,26 @@ class CosimSettings:
     events: str = "locate"  # "locate": roll back and step onto events; "step": at the next
     # communication point; "off": no event handling at all (plain master)
     event_tol: float = 1e-10  # event time tolerance, relative to the forcing period
-    chatter_tol: float = 1e-7  # rebound speed (relative to the velocity scale) ending chatter
+    # rebound speed (relative to the velocity scale) ending chatter; None: the scenario's
+    # sim.chatter_tol, raised to MIN_CHATTER_TOL (the one rule of both sides)
+    chatter_tol: float | None = None
     max_events_per_period: int = 2000
     unit_rtol: float = 1e-10  # tolerances of the units' own integrators
     unit_atol: float = 1e-14
     order: tuple[str, ...] = ()  # Gauss-Seidel order of the units (default: by dependency)
 
+    def with_chatter_tol(self, sim_chatter_tol: float) -> CosimSettings:
+        """The threshold that ends chattering, from the scenario's ``sim.chatter_tol`` when
+        not set here: the reference's rule, at the finest the master can resolve."""
+        if self.chatter_tol is not None:
+            return self
+        return replace(self, chatter_tol=max(sim_chatter_tol, MIN_CHATTER_TOL))
+
     def with_defaults(self, period: float) -> CosimSettings:
         step = self.step or period / 400.0
         return replace(
             self,
+            chatter_tol=MIN_CHATTER_TOL if self.chatter_tol is None else self.chatter_tol,
             step=step,
             max_step=self.max_step or max(period / 10.0, step),
             min_step=self.min_step or min(1e-9 * period, step),
@@ -114,7 +128,7 @@ def cosim_settings(raw: Mapping[str, Any]) -> CosimSettings:
         else:  # step, min_step, max_step
             v[key] = _number(key, value, 0.0)
     settings = CosimSettings(**v)
-    if settings.chatter_tol < 1e-7:
+    if settings.chatter_tol is not None and settings.chatter_tol < MIN_CHATTER_TOL:
         # slower rebounds bounce less than a few ulps of the gap: the locator cannot see them
         raise SettingsError(
             f"cosim.chatter_tol = {settings.chatter_tol!r} must be >= 1e-7 (slower rebounds "

@@ -219,7 +219,7 @@ def build_scenario(
             )
     sim = sim_settings(sim_raw)
     try:
-        cosim = cosim_settings(cosim_raw)
+        cosim = cosim_settings(cosim_raw).with_chatter_tol(sim["chatter_tol"])
     except SettingsError as exc:
         raise ScenarioError(str(exc)) from None
     try:

@@ -329,3 +329,12 @@ def test_an_fmu_that_refuses_its_outputs_ends_the_run_the_same_way(built_fmus):
     fixed = replace(sc.cosim, adaptive=False, step=h, backend="fmu")
     r = run_cosim(sc, fixed, record=["rotor.x"], fmu_dir=fmu_dir)
     assert r.status == "failed" and "get outputs" in r.message and "t = " in r.message
+
+
+def test_the_cosimulation_takes_the_scenarios_chatter_threshold_unless_told_otherwise():
+    path = SCENARIOS / "jeffcott_rigid_stator.toml"
+    assert load_scenario(path, ["sim.chatter_tol=3e-7"]).cosim.chatter_tol == 3e-7
+    # finer than the master resolves: raised to its floor, 1e-7
+    assert load_scenario(path, ["sim.chatter_tol=1e-9"]).cosim.chatter_tol == 1e-7
+    both = load_scenario(path, ["sim.chatter_tol=3e-7", "cosim.chatter_tol=2e-6"])
+    assert both.cosim.chatter_tol == 2e-6
