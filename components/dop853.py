@@ -119,3 +119,19 @@ def dense_eval(t_old, h, y_old, F, t, out, ncomp):
             else:
                 acc *= 1.0 - x
         out[c] = acc + y_old[c]
+
+
+@njit
+def workspace(n):
+    """Scratch arrays of a DOP853 driver for ``n`` states: ``(K, F, f, f_new, y_new,
+    ytmp, dy)``: all stages, dense-output coefficients, the derivative at the step's
+    start and end, the trial solution, a stage point and a derivative buffer."""
+    return (
+        np.empty((N_EXT, n)),
+        np.empty((7, n)),
+        np.empty(n),
+        np.empty(n),
+        np.empty(n),
+        np.empty(n),
+        np.empty(n),
+    )

@@ -35,6 +35,7 @@ from .dop853 import (
     next_step,
     solution_point,
     stage_point,
+    workspace,
 )
 from .hybrid_dispatch import KIND_IMPACT, N_EVENTS
 from .jit import USE_NUMBA, njit
@@ -164,13 +165,7 @@ def advance(kind, t0, t_end, y, mode, h, p, u, rtol, atol):
     :data:`TOO_MANY_EVENTS` (``y`` is then partly advanced; the caller restores it).
     """
     n = y.shape[0]
-    K = np.empty((N_EXT, n))
-    F = np.empty((7, n))
-    f = np.empty(n)
-    f_new = np.empty(n)
-    y_new = np.empty(n)
-    ytmp = np.empty(n)
-    dy = np.empty(n)
+    K, F, f, f_new, y_new, ytmp, dy = workspace(n)
     tol = np.full(n, atol)
     g_a, g_b, g = np.empty(N_EVENTS), np.empty(N_EVENTS), np.empty(N_EVENTS)
     dirs, dirs_b = np.empty(N_EVENTS, np.int64), np.empty(N_EVENTS, np.int64)

@@ -12,21 +12,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.integrate import DOP853
 
-from .core import (
-    C_EVAL,
-    C_RESTARTS,
-    C_RHS,
-    C_STATUS,
-    C_STEPS,
-    STATUS_NONFINITE,
-    STATUS_OK,
-    STATUS_STEP_TOO_SMALL,
-    after_step,
-    needs_dense,
-    new_event_state,
-    new_workspace,
-    record_point,
-)
+from . import core
 from .event_search import (
     sides_from,
     start_sides,
@@ -48,14 +34,16 @@ def integrate(y0, mode, t0, t_end, p, ip, tol, out, hist, dde, y_final):
     t = float(t0)
     n = y.shape[0]
     yd = np.empty(N_DELAYED)
-    g_a, side, dirs, rates, g_b, dirs_b, rates_b = new_event_state()
-    ev = (g_a, side, dirs, rates, g_b)  # what after_step reads and updates
+    g_a, side, dirs, rates, g_b, dirs_b, rates_b = core.new_event_state()
+    ev = (g_a, side, dirs, rates, g_b)  # what core.after_step reads and updates
     y_next = np.empty(n)
-    work = new_workspace(n, rec.shape[1])
+    work = core.new_workspace(n, rec.shape[1])
     forced_slot, forced_side = -1, 0
     h_last = 0.0
-    cnt[C_EVAL] = record_point(t, y, mode, p, ip, hist, t_eval, 0, rec, yd, np.empty(rec.shape[1]))
-    while t < t_end and cnt[C_STATUS] == STATUS_OK:
+    cnt[core.C_EVAL] = core.record_point(
+        t, y, mode, p, ip, hist, t_eval, 0, rec, yd, np.empty(rec.shape[1])
+    )
+    while t < t_end and cnt[core.C_STATUS] == core.STATUS_OK:
         bound = next_breakpoint(t, t_end, p, ip, queue, qmeta)
         start_sides(t, y, mode, p, ip, hist, g_a, dirs, rates, side, yd, forced_slot, forced_side)
         forced_slot = -1
@@ -69,26 +57,26 @@ def integrate(y0, mode, t0, t_end, p, ip, tol, out, hist, dde, y_final):
         solver = DOP853(
             fun, t, y, bound, rtol=rtol, atol=atol, max_step=max_step, first_step=first_step
         )
-        cnt[C_RESTARTS] += 1
-        while solver.status == "running" and cnt[C_STATUS] == STATUS_OK:
+        cnt[core.C_RESTARTS] += 1
+        while solver.status == "running" and cnt[core.C_STATUS] == core.STATUS_OK:
             solver.step()
             if solver.status == "failed":
-                cnt[C_STATUS] = STATUS_STEP_TOO_SMALL
+                cnt[core.C_STATUS] = core.STATUS_STEP_TOO_SMALL
                 break
             if not np.all(np.isfinite(solver.y)):
-                cnt[C_STATUS] = STATUS_NONFINITE
+                cnt[core.C_STATUS] = core.STATUS_NONFINITE
                 break
-            cnt[C_STEPS] += 1
+            cnt[core.C_STEPS] += 1
             h_last = solver.step_size
             step_end_events(solver.t, solver.y, mode, p, ip, hist, yd, g_b, dirs_b, rates_b)
-            if not needs_dense(solver.t, hist, g_a, side, dirs, rates, g_b, t_eval, cnt):
+            if not core.needs_dense(solver.t, hist, g_a, side, dirs, rates, g_b, t_eval, cnt):
                 g_a[:] = g_b
                 sides_from(g_b, side)
                 y = solver.y.copy()
                 t = solver.t
                 continue
             dense = solver.dense_output()
-            t_next, mode_next, fs, fside = after_step(
+            t_next, mode_next, fs, fside = core.after_step(
                 solver.t_old,
                 solver.t,
                 dense.y_old,
@@ -110,6 +98,6 @@ def integrate(y0, mode, t0, t_end, p, ip, tol, out, hist, dde, y_final):
                 mode = mode_next
                 forced_slot, forced_side = fs, fside
                 break
-        cnt[C_RHS] += solver.nfev
+        cnt[core.C_RHS] += solver.nfev
     y_final[:] = y
     return t, mode

@@ -22,6 +22,7 @@ from rubcosim.components.dop853 import (
     next_step,
     solution_point,
     stage_point,
+    workspace,
 )
 
 from .core import (
@@ -133,18 +134,12 @@ def integrate(y0, mode, t0, t_end, p, ip, tol, out, hist, dde, y_final):
     n = y0.shape[0]
     y = y0.copy()
     t = t0
-    K = np.empty((N_EXT, n))
-    F = np.empty((7, n))
-    f = np.empty(n)
-    y_new = np.empty(n)
-    f_new = np.empty(n)
+    K, F, f, f_new, y_new, ytmp, dy = workspace(n)
     y_next = np.empty(n)
     work = new_workspace(n, rec.shape[1])
     yd = np.empty(N_DELAYED)
     g_a, side, dirs, rates, g_b, dirs_b, rates_b = new_event_state()
     ev = (g_a, side, dirs, rates, g_b)  # what after_step reads and updates
-    ytmp = np.empty(n)
-    dy = np.empty(n)
     forced_slot, forced_side = -1, 0
     h_last = 0.0
     obuf = np.empty(rec.shape[1])
