@@ -1,4 +1,4 @@
-"""The DOP853 Runge-Kutta pair: tableau, error norm and step-size rule, read from scipy.
+"""The DOP853 Runge-Kutta pair: scipy's tableau, error norm and step-size rule.
 
 Shared by the reference's ``fast`` engine and the units' compiled steps, so
 every compiled integrator in rubcosim takes the steps scipy's ``DOP853``
@@ -10,8 +10,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from scipy.integrate._ivp import dop853_coefficients as _dop
-
+from . import dop853_tableau as _dop
 from .jit import njit
 
 N_STAGES = _dop.N_STAGES

@@ -71,6 +71,10 @@ def _parser() -> argparse.ArgumentParser:
     check.add_argument("--out", required=True, help="directory for report.json and comparison.png")
     _analysis_parsers(sub)
     sub.add_parser("scenarios", help="list the bundled scenarios with their descriptions")
+    warm = sub.add_parser(
+        "warm-up", help="compile the numba kernels into the cache once (make setup runs it)"
+    )
+    warm.add_argument("--workers", type=int, default=2, help="processes (default 2)")
     build = sub.add_parser("build-fmus", help="build every unit as an FMI 2.0 co-simulation FMU")
     build.add_argument(
         "--out", default="build/fmus", help="directory for the .fmu files (default: build/fmus)"
@@ -340,6 +344,14 @@ def cmd_scenarios(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_warm_up(args: argparse.Namespace) -> int:
+    from .warmup import warm_up
+
+    for what, seconds in warm_up(args.workers):
+        print(f"compiled {what} in {seconds:.1f} s")
+    return 0
+
+
 COMMANDS = {
     "run": cmd_run,
     "check": cmd_check,
@@ -347,6 +359,7 @@ COMMANDS = {
     "sweep": cmd_sweep,
     "basins": cmd_basins,
     "scenarios": cmd_scenarios,
+    "warm-up": cmd_warm_up,
 }
 
 

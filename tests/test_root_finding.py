@@ -65,3 +65,15 @@ def test_a_zero_at_the_bracket_end_needs_no_trial() -> None:
     assert advance(s)
     assert crossed_end(s) == 2.0
     assert np.isfinite(s).all()
+
+
+def test_the_dop853_tableau_is_scipys():
+    # the copy that spares importing scipy.integrate at start-up, element for element
+    from scipy.integrate._ivp import dop853_coefficients as scipy_tableau
+
+    from rubcosim.components import dop853_tableau as ours
+
+    assert ours.N_STAGES == scipy_tableau.N_STAGES
+    assert ours.N_STAGES_EXTENDED == scipy_tableau.N_STAGES_EXTENDED
+    for name in ("A", "B", "C", "E3", "E5", "D"):
+        assert np.array_equal(getattr(ours, name), getattr(scipy_tableau, name)), name

@@ -10,7 +10,6 @@ down to 1e-12 (scipy refuses tighter than 100 machine epsilons).
 from __future__ import annotations
 
 import numpy as np
-from scipy.integrate import DOP853
 
 from . import core
 from .event_search import (
@@ -27,6 +26,8 @@ from .system import N_DELAYED
 
 def integrate(y0, mode, t0, t_end, p, ip, tol, out, hist, dde, y_final):
     """Same contract as :func:`rubcosim.reference.fast.integrate`."""
+    from scipy.integrate import DOP853  # here: only this engine needs scipy at run time
+
     rtol, atol, max_step = tol
     t_eval, rec, evlog, cnt = out
     queue, qmeta = dde

@@ -1,0 +1,60 @@
+"""Compile the numba kernels once, into the cache, before the first real run.
+
+A fresh checkout has an empty numba cache: its first run compiles the engine,
+the unit stepper and the analysis kernels (a minute or more on two cores) for
+a simulation of milliseconds.  ``rubcosim warm-up`` (run by ``make setup``)
+does that once: short runs of bundled scenarios that reach every compiled
+path, in parallel processes where the paths do not overlap.  Every later
+process loads the compiled code from the cache (keyed by the sources, see
+``rubcosim/__init__.py``), so a change of source compiles again, once.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from concurrent.futures import ProcessPoolExecutor
+
+
+def _engines() -> str:
+    """The monolithic engines: the rotor family (fast and accurate, with a delay) and a
+    hybrid type, then the stroboscopic map kernels the analyses are built on."""
+    from . import api
+
+    api.simulate("jeffcott_rigid_stator", "fast", set={"sim.t_end": 0.005})
+    api.simulate("jeffcott_rigid_stator", "accurate", set={"sim.t_end": 0.002})
+    api.simulate("jeffcott_delayed_feedback", "fast", set={"sim.t_end": 0.005})
+    api.simulate("impact_duffing", "fast", set={"sim.t_end": 10.0})
+    api.sweep("impact_duffing", "oscillator.forcing_amplitude", [0.5, 0.6], periods=2, discard=2)
+    api.basins("impact_duffing", grid=(4, 4), samples=1, region="-2:1,-2:2")
+    return "engines and analysis kernels"
+
+
+def _units() -> str:
+    """The co-simulation's units (the compiled unit stepper for ODE and hybrid units) and
+    the master's compiled decisions."""
+    from . import api
+
+    api.cosimulate("jeffcott_rigid_stator", "direct", set={"sim.t_end": 0.002})
+    api.cosimulate("jeffcott_elastic_casing", "direct", set={"sim.t_end": 0.002})
+    api.cosimulate("impact_duffing", "direct", set={"sim.t_end": 5.0})
+    return "co-simulation units"
+
+
+JOBS: tuple[Callable[[], str], ...] = (_engines, _units)
+
+
+def warm_up(workers: int = 2) -> list[tuple[str, float]]:
+    """Run the warm-up jobs (in ``workers`` processes; 1: in this one); returns what each
+    compiled and its wall time (s)."""
+    if workers <= 1:
+        return [_timed_job(i) for i in range(len(JOBS))]
+    with ProcessPoolExecutor(max_workers=workers) as pool:
+        futures = [pool.submit(_timed_job, i) for i in range(len(JOBS))]
+        return [f.result() for f in futures]
+
+
+def _timed_job(index: int) -> tuple[str, float]:
+    start = time.perf_counter()
+    what = JOBS[index]()
+    return what, time.perf_counter() - start
