@@ -67,6 +67,24 @@ def tangent_periods(y, mode, t0, period, n_periods, p, ip, tol, max_events, Phi,
 
 
 @nb.njit(cache=True)
+def _column_norm(Q, c):
+    return math.sqrt(np.sum(Q[:, c] * Q[:, c]))
+
+
+@nb.njit(cache=True)
+def _project_out(Q, c, passes):
+    """Remove from column c its components along columns 0..c-1 (orthonormal)."""
+    n = Q.shape[0]
+    for _ in range(passes):
+        for b in range(c):
+            dot = 0.0
+            for i in range(n):
+                dot += Q[i, b] * Q[i, c]
+            for i in range(n):
+                Q[i, c] -= dot * Q[i, b]
+
+
+@nb.njit(cache=True)
 def gram_schmidt(Q, logs):
     """Orthonormalise the columns of Q in place (modified Gram-Schmidt, twice for
     round-off) and write the log of each column's norm after projection to
@@ -74,41 +92,21 @@ def gram_schmidt(Q, logs):
     vector orthogonal to the others, so the later columns stay defined)."""
     n, k = Q.shape
     for c in range(k):
-        norm0 = 0.0
-        for i in range(n):
-            norm0 += Q[i, c] * Q[i, c]
-        norm0 = math.sqrt(norm0)
-        for _ in range(2):
-            for b in range(c):
-                dot = 0.0
-                for i in range(n):
-                    dot += Q[i, b] * Q[i, c]
-                for i in range(n):
-                    Q[i, c] -= dot * Q[i, b]
-        norm = 0.0
-        for i in range(n):
-            norm += Q[i, c] * Q[i, c]
-        norm = math.sqrt(norm)
+        norm0 = _column_norm(Q, c)
+        _project_out(Q, c, 2)
+        norm = _column_norm(Q, c)
         if norm > 1e-300 and norm > 1e-14 * norm0:
             logs[c] = math.log(norm)
-            for i in range(n):
-                Q[i, c] /= norm
+            Q[:, c] /= norm
             continue
         logs[c] = -math.inf
         for e in range(n):  # the first basis vector not in the span of the others
-            for i in range(n):
-                Q[i, c] = 1.0 if i == e else 0.0
-            for b in range(c):
-                dot = Q[e, b]
-                for i in range(n):
-                    Q[i, c] -= dot * Q[i, b]
-            norm = 0.0
-            for i in range(n):
-                norm += Q[i, c] * Q[i, c]
-            norm = math.sqrt(norm)
+            Q[:, c] = 0.0
+            Q[e, c] = 1.0
+            _project_out(Q, c, 1)
+            norm = _column_norm(Q, c)
             if norm > 0.5:
-                for i in range(n):
-                    Q[i, c] /= norm
+                Q[:, c] /= norm
                 break
 
 
