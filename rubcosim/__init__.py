@@ -27,6 +27,7 @@ _API = {
     "check": "api",
     "sweep": "api",
     "basins": "api",
+    "lyapunov": "api",
     "scenarios": "api",
     "Scenario": "scenario",
     "ScenarioError": "scenario",
@@ -41,6 +42,7 @@ __all__ = [
     "check",
     "sweep",
     "basins",
+    "lyapunov",
     "scenarios",
     "Scenario",
     "ScenarioError",
@@ -49,7 +51,7 @@ __all__ = [
 ]
 
 if TYPE_CHECKING:
-    from .api import basins, check, cosimulate, load, scenarios, simulate, sweep
+    from .api import basins, check, cosimulate, load, lyapunov, scenarios, simulate, sweep
     from .results import CheckResult, SimulationResult
     from .scenario import Scenario, ScenarioError
 

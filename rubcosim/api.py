@@ -25,6 +25,7 @@ from .scenario import Scenario, ScenarioError, build_scenario, load_scenario, ov
 
 if TYPE_CHECKING:
     from .analysis.cellmap import Basins
+    from .analysis.lyapunov import Lyapunov
     from .analysis.sweep import ParamRange, SweepResult
 
 ScenarioLike = Scenario | str | Path | Mapping[str, Any]
@@ -130,6 +131,7 @@ def sweep(
     direction: str = "up",
     rtol: float | None = None,
     floquet: bool = False,
+    lyapunov: bool = False,
     grazing: bool = False,
     chains: int = 1,
     workers: int | None = None,
@@ -141,6 +143,8 @@ def sweep(
     continuation, ``discard`` forcing periods of transient then ``periods`` stroboscopic
     points per value, sweeping ``"up"``, ``"down"`` or ``"both"``.  ``floquet``: the
     multipliers of every periodic motion of period <= 8 (``result.multipliers``);
+    ``lyapunov``: the largest Lyapunov exponent (1/s) of each value's motion over
+    ``periods`` periods (``result.lyapunov``);
     ``grazing``: locate where impacts start or stop and fit the square-root law there
     (``result.grazings``).  ``workers`` local processes or a Dask ``scheduler``."""
     from .analysis.maps import DEFAULT_RTOL
@@ -165,6 +169,10 @@ def sweep(
         from .analysis.floquet import sweep_floquet
 
         result.multipliers = sweep_floquet(sc, result)
+    if lyapunov:
+        from .analysis.lyapunov import sweep_lyapunov
+
+        result.lyapunov = sweep_lyapunov(sc, result)
     if grazing:
         from .analysis.grazing import sweep_grazings
 
@@ -238,3 +246,26 @@ def basins(
         "wall_time_s": time.perf_counter() - t0,
     }
     return result
+
+
+def lyapunov(
+    scenario: ScenarioLike,
+    periods: int = 1000,
+    transient: int = 200,
+    *,
+    rtol: float | None = None,
+    set: Params = None,  # noqa: A002
+    count: int | None = None,
+) -> Lyapunov:
+    """Lyapunov spectrum (``rubcosim lyapunov``) of the scenario's motion from its initial
+    state: ``transient`` forcing periods discarded, then ``periods`` measured, the
+    tangent re-orthonormalised every period; the variational equations on the fast
+    engine, with the saltation matrix at every impact and switch.  ``count``: only the
+    largest few.  ``result.exponents`` (1/s, largest first), ``result.per_interval``
+    (per period), ``result.liouville`` (their sum by Liouville's formula)."""
+    from .analysis.lyapunov import LYAPUNOV_RTOL, lyapunov_spectrum
+
+    sc = _scenario(scenario, set)
+    return lyapunov_spectrum(
+        sc.system, periods, transient, rtol=_rtol(rtol, LYAPUNOV_RTOL), count=count
+    )

@@ -13,7 +13,7 @@ from rubcosim.orchestrator.master import CosimError
 from rubcosim.orchestrator.settings import BACKENDS
 from rubcosim.reference.simulate import ENGINES
 
-from . import api
+from . import api, cli_lyapunov
 from .analysis.cellmap import BASIN_METHODS
 from .analysis.errors import AnalysisError
 from .analysis.sweep import DIRECTIONS
@@ -70,6 +70,7 @@ def _parser() -> argparse.ArgumentParser:
     )
     check.add_argument("--out", required=True, help="directory for report.json and comparison.png")
     _analysis_parsers(sub)
+    cli_lyapunov.add_parser(sub, SCENARIO_HELP)
     sub.add_parser("scenarios", help="list the bundled scenarios with their descriptions")
     warm = sub.add_parser(
         "warm-up", help="compile the numba kernels into the cache once (make setup runs it)"
@@ -153,6 +154,11 @@ def _analysis_parsers(sub: Any) -> None:
         "of period <= 8",
     )
     sw.add_argument(
+        "--lyapunov",
+        action="store_true",
+        help="largest Lyapunov exponent (1/s) of each value's motion over --periods periods",
+    )
+    sw.add_argument(
         "--grazing",
         action="store_true",
         help="locate each grazing between sweep values (impacts start or stop) and fit the "
@@ -212,6 +218,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
         direction=args.direction,
         rtol=args.rtol,
         floquet=args.floquet,
+        lyapunov=args.lyapunov,
         grazing=args.grazing,
         chains=args.chains,
         workers=args.workers,
@@ -358,6 +365,7 @@ COMMANDS = {
     "build-fmus": cmd_build_fmus,
     "sweep": cmd_sweep,
     "basins": cmd_basins,
+    "lyapunov": cli_lyapunov.cmd_lyapunov,
     "scenarios": cmd_scenarios,
     "warm-up": cmd_warm_up,
 }

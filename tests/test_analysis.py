@@ -306,6 +306,7 @@ def test_cli_sweep_writes_data_plot_and_report(tmp_path, capsys):
         "--plot-state",
         "oscillator.v",
         "--floquet",
+        "--lyapunov",
         "--section",
         "impact",
     ]
@@ -317,13 +318,16 @@ def test_cli_sweep_writes_data_plot_and_report(tmp_path, capsys):
         re, im = np.array(entry["floquet"]["multipliers"]).T
         assert entry["floquet"]["stable"]
         assert np.prod(re + 1j * im).real == pytest.approx(0.64 * math.exp(-0.1 * math.pi), 1e-6)
+        # the largest exponent of a stable 1-1 orbit: ln of its largest multiplier / T
+        largest = math.log(np.abs(re + 1j * im).max()) / math.pi
+        assert entry["largest_lyapunov_per_s"] == pytest.approx(largest, abs=0.05)
     data = np.load(out / "sweep.npz")
     assert data["points_up"].shape == (4, 6, 2) and (out / "bifurcation.png").stat().st_size
     phases = data["impact_phase_up"]  # one impact a period, at one phase per value
     assert phases.shape == (4, 24) and np.all(np.isfinite(phases[:, :6]))
     assert np.all(np.isnan(phases[:, 6:])) and np.all(np.ptp(phases[:, :6], axis=1) < 1e-6)
     csv = np.loadtxt(out / "sweep.csv", delimiter=",", skiprows=1)
-    assert csv.shape == (2 * 4 * 6, 6)
+    assert csv.shape == (2 * 4 * 6, 7) and np.all(csv[:, -1] < 0.0)
     assert not (tmp_path / ".sweep.checkpoint").exists()
     assert "swept oscillator.forcing_amplitude" in capsys.readouterr().out
     for bad, msg in [

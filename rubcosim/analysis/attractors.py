@@ -9,9 +9,9 @@ neighbourhood* is a set of cells from which direct simulation goes to it:
   neighbours within ``NEAR_RADIUS`` cells, each kept only when the simulated
   orbit from the cell's centre converges to the attractor (its points within
   ``MATCH_TOL`` state scales);
-- a motion that is not periodic (chaotic, or quasi-periodic: telling those
-  apart needs the largest Lyapunov exponent, not computed here): the cells its
-  orbit visits in ``CHAOS_KEEP`` periods.
+- a motion that is not periodic (chaotic, or quasi-periodic: its largest
+  Lyapunov exponent over ``CHAOS_KEEP`` periods, ``motion["lyapunov"]`` in 1/s,
+  tells them apart): the cells its orbit visits in ``CHAOS_KEEP`` periods.
 
 A point is *pursued* by mapping it ``PURSUE_STEP`` periods at a time (the
 compiled multi-period map, many points per call) until it enters a verified
@@ -32,6 +32,8 @@ from typing import Any
 import numpy as np
 
 from .cellmap import Grid, same_motion
+from .errors import AnalysisError
+from .lyapunov import lyapunov_spectrum
 from .maps import StroboscopicMap
 from .motion import classify
 
@@ -125,8 +127,21 @@ def new_attractor(
         near[own] = True
         motion["section_points"] = pts[-256:].tolist()
         motion["cells_visited"] = int(own.size)
-        motion["lyapunov"] = "not computed (issue 13 part 3)"
+        motion["lyapunov"] = largest_exponent(smap, more if more.ok else orbit)
     return Attractor(motion, pts, np.unique(own), near)
+
+
+def largest_exponent(smap: StroboscopicMap, orbit: Any) -> float | str:
+    """The largest Lyapunov exponent (1/s) over ``CHAOS_KEEP`` periods from the end of
+    ``orbit`` (an :class:`~.maps.Orbit`), or why it could not be measured."""
+    try:
+        lyap = lyapunov_spectrum(
+            smap.system, CHAOS_KEEP, 0, rtol=smap.rtol, y0=orbit.final_state,
+            mode=orbit.mode, count=1,
+        )  # fmt: skip
+    except AnalysisError as exc:
+        return f"not measured: {exc}"
+    return lyap.largest
 
 
 def match(smap: StroboscopicMap, grid: Grid, motion: dict[str, Any], known: list[Attractor]) -> int:

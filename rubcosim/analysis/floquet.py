@@ -1,15 +1,13 @@
 """Floquet multipliers of periodic motions, through impacts.
 
 The monodromy matrix of an n-periodic motion is the Jacobian of the n-fold
-stroboscopic map at its fixed point.  Across a transversal impact that
-Jacobian is the flow's Jacobian multiplied by the impact's saltation matrix
-``S = R + (f+ - R f-) n^T / (n^T f-)`` (R the impact law's Jacobian, f-
-and f+ the vector field before and after, n the surface normal); here it is
-taken by central differences of the event-located map, which composes the
-saltation matrices exactly as the integrator composes the flow, without
-deriving them per model.  It is valid while every perturbed orbit has the
-impacts of the unperturbed one (no grazing within the perturbation); that is
-checked, and the result refused when it fails.
+stroboscopic map at its fixed point: the tangent matrix of the variational
+equations over n forcing periods from the identity, with the saltation matrix
+``S = DG + (f+ - DG f-) grad_h^T / (grad_h . f-)`` applied at every event
+(:func:`.lyapunov.monodromy`, on the ``fast`` engine).  It is valid while
+every nearby orbit has the impacts of this one (no grazing within the
+perturbation): that is checked by mapping the states ``FD_STEP`` scales away
+along each axis, and the result refused when one of them changes its impacts.
 
 The fixed point is first refined by Newton's method on ``P^n(y) - y``.
 """
@@ -22,10 +20,11 @@ from typing import Any
 import numpy as np
 
 from .errors import MapError
+from .lyapunov import monodromy
 from .maps import StroboscopicMap
 
-FLOQUET_RTOL = 1e-12  # the map's tolerance: differences of 1e-6 scales keep 6 digits
-FD_STEP = 1e-6  # perturbation, in state scales
+FLOQUET_RTOL = 1e-12  # the map's tolerance (the fixed point by Newton to 1e-10)
+FD_STEP = 1e-6  # perturbation of the grazing check, in state scales
 
 
 @dataclass(frozen=True)
@@ -71,20 +70,21 @@ def _image(smap: StroboscopicMap, y: np.ndarray, n: int, mode: int) -> tuple[np.
 def jacobian(
     smap: StroboscopicMap, y: np.ndarray, n: int, mode: int, step: float = FD_STEP
 ) -> tuple[np.ndarray, int]:
-    """Central-difference Jacobian of the n-fold map at ``y``, and the impacts of the
-    unperturbed orbit; refuses when a perturbed orbit changes its impacts."""
-    base, m = _image(smap, y, n, mode)
-    J = np.empty((y.size, y.size))
-    for j in range(y.size):
-        dy = step * smap.scale[j]
-        hi, m_hi = _image(smap, y + np.eye(y.size)[j] * dy, n, mode)
-        lo, m_lo = _image(smap, y - np.eye(y.size)[j] * dy, n, mode)
-        if m_hi != m or m_lo != m:
-            raise MapError(
-                f"a perturbation of {step:g} scales changes the impacts per {n} period(s) "
-                f"({m_lo}, {m}, {m_hi}): the orbit is at grazing and its map is not smooth"
-            )
-        J[:, j] = (hi - lo) / (2.0 * dy)
+    """Jacobian of the n-fold map at ``y`` (the variational equations' monodromy
+    matrix) and the impacts of the orbit; refuses when an orbit started ``step``
+    scales away along an axis changes its impacts (grazing)."""
+    J, m, _, _ = monodromy(smap.system, y, n, mode, smap.rtol, smap.max_events)
+    offsets = np.diag(step * smap.scale)
+    starts = np.concatenate((y + offsets, y - offsets))
+    _, _, impacts, status = smap.map(starts, n, np.full(2 * y.size, mode, dtype=np.int64))
+    if np.any(status != 0):
+        raise MapError("the map failed near the periodic orbit")
+    if np.any(impacts != m):
+        lo, hi = int(impacts.min()), int(impacts.max())
+        raise MapError(
+            f"a perturbation of {step:g} scales changes the impacts per {n} period(s) "
+            f"({lo}..{hi}, not {m}): the orbit is at grazing and its map is not smooth"
+        )
     return J, m
 
 

@@ -54,18 +54,20 @@ def write_sweep(
     for d_i, d in enumerate(dirs):
         n_v, n_k, n = result.points[d].shape
         vi, ki = np.meshgrid(np.arange(n_v), np.arange(n_k), indexing="ij")
-        rows.append(
-            np.column_stack(
-                [
-                    np.full(vi.size, d_i),
-                    result.values[vi.ravel()],
-                    ki.ravel(),
-                    result.points[d].reshape(-1, n),
-                    result.impacts[d].ravel(),
-                ]
-            )
-        )
+        columns = [
+            np.full(vi.size, d_i),
+            result.values[vi.ravel()],
+            ki.ravel(),
+            result.points[d].reshape(-1, n),
+            result.impacts[d].ravel(),
+        ]
+        if result.lyapunov:
+            largest = np.array([np.nan if v is None else v for v in result.lyapunov[d]])
+            columns.append(largest[vi.ravel()])
+        rows.append(np.column_stack(columns))
     header = ["direction", result.param.name, "period_index", *result.state_names, "impacts"]
+    if result.lyapunov:
+        header.append("largest_lyapunov_per_s")
     np.savetxt(
         tmp / "sweep.csv",
         np.vstack(rows),
@@ -78,6 +80,9 @@ def write_sweep(
     for d, rows in (multipliers or {}).items():
         for entry, f in zip(per_dir[d], rows, strict=True):
             entry["floquet"] = f
+    for d, largest in result.lyapunov.items():
+        for entry, lam in zip(per_dir[d], largest, strict=True):
+            entry["largest_lyapunov_per_s"] = lam
     _json(
         tmp / "report.json",
         {

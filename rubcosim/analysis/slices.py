@@ -35,7 +35,14 @@ from typing import Any
 import numpy as np
 from scipy.spatial import cKDTree
 
-from .attractors import CHAOS_KEEP, MATCH_TOL, Attractor, converges_to, settle
+from .attractors import (
+    CHAOS_KEEP,
+    MATCH_TOL,
+    Attractor,
+    converges_to,
+    largest_exponent,
+    settle,
+)
 from .cellmap import DEFAULT_CHUNK, Basins, Grid, check_sampling, same_motion, sample_cells
 from .errors import AnalysisError
 from .maps import StroboscopicMap, admissible
@@ -157,7 +164,7 @@ class StateSpace:
             d, _ = cKDTree(pts / self.scale).query(pts / self.scale, k=2, p=np.inf)
             radius = CHAOS_SPACING * float(np.median(d[:, 1]))
             motion["section_points"] = pts[-256:].tolist()
-            motion["lyapunov"] = "not computed (issue 13 part 3)"
+            motion["lyapunov"] = largest_exponent(smap, more if more.ok else orbit)
         motion["slice_points"] = np.asarray(motion["poincare_points"])[:, self.axes].tolist()
         cells = np.unique(self.grid.cell_of(pts[:, self.axes]))
         cells = cells[cells != self.grid.sink]

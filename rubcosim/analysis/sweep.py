@@ -148,6 +148,8 @@ class SweepResult:
     impact_phase: dict[str, np.ndarray]
     # per direction and value: Floquet multipliers (rubcosim.analysis.floquet.sweep_floquet)
     multipliers: dict[str, list[dict[str, Any] | None]] = field(default_factory=dict)
+    # per direction and value: largest Lyapunov exponent, 1/s (.lyapunov.sweep_lyapunov)
+    lyapunov: dict[str, list[float | None]] = field(default_factory=dict)
     # located grazings (rubcosim.analysis.grazing.sweep_grazings), as dicts
     grazings: list[dict[str, Any]] = field(default_factory=list)
 

@@ -51,6 +51,7 @@ from .history import (
     next_breakpoint,
 )
 from .system import N_DELAYED, N_EVENTS
+from .tangent import tangent_after, tangent_step
 
 
 @nb.njit(cache=True)
@@ -120,13 +121,14 @@ def rk_step(t, y, f, h, mode, p, ip, hist, yd, K, y_new, f_new, ytmp, dy, cnt):
 
 
 @nb.njit(cache=True)
-def integrate(y0, mode, t0, t_end, p, ip, tol, out, hist, dde, y_final):
+def integrate(y0, mode, t0, t_end, p, ip, tol, out, hist, dde, y_final, tan=None):
     """Integrate from t0 to t_end; returns ``(t, mode)`` reached (t < t_end on failure).
 
     ``tol = (rtol, atol array, max_step)``; ``out = (t_eval, rec, evlog, cnt)``: the
     output times, the recorded outputs there, the event log and the counters;
     ``hist`` the delay history (None without delay) and ``dde = (queue, qmeta)`` its
-    breakpoint queue; the final state goes to ``y_final``.
+    breakpoint queue; the final state goes to ``y_final``.  ``tan``: a tangent matrix
+    carried along (:func:`rubcosim.reference.tangent.new_tangent`; delay-free systems).
     """
     rtol, atol, max_step = tol
     t_eval, rec, evlog, cnt = out
@@ -191,6 +193,7 @@ def integrate(y0, mode, t0, t_end, p, ip, tol, out, hist, dde, y_final):
             step_end_events(t_new, y_new, mode, p, ip, hist, yd, g_b, dirs_b, rates_b)
             if not needs_dense(t_new, hist, g_a, side, dirs, rates, g_b, t_eval, cnt):
                 # Nothing to record, no delay to feed, no event possible: move on.
+                tangent_step(tan, t, h, y, K, mode, p, ip, hist, yd)
                 for i in range(n):
                     y[i] = y_new[i]
                     f[i] = f_new[i]
@@ -202,6 +205,9 @@ def integrate(y0, mode, t0, t_end, p, ip, tol, out, hist, dde, y_final):
             dense_coefficients(t, h, y, y_new, f_new, K, mode, p, ip, hist, yd, F, ytmp, dy, cnt)
             t_next, mode_next, fs, fside = after_step(
                 t, t_new, y, y_new, F, mode, p, ip, hist, dde, ev, out, y_next, work
+            )
+            tangent_after(
+                tan, (t, h, y, F), K, t_next, (mode, mode_next, fs), y_next, out, p, ip, hist, yd
             )
             y[:] = y_next
             t = t_next
