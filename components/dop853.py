@@ -10,6 +10,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+
 from . import dop853_tableau as _dop
 from .jit import njit
 
