@@ -14,6 +14,8 @@ $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
 	$(PY) -m pip install --quiet -e '.[dev]'
+	@echo "compiling the numba kernels into the cache once (rubcosim warm-up)"
+	$(VENV)/bin/rubcosim warm-up
 	touch $(STAMP)
 
 run: $(STAMP)

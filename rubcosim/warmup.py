@@ -31,14 +31,15 @@ def _engines() -> str:
 
 
 def _units() -> str:
-    """The co-simulation's units (the compiled unit stepper for ODE and hybrid units) and
-    the master's compiled decisions."""
+    """The co-simulation's units (the compiled unit stepper for ODE and hybrid units), the
+    master's compiled decisions, and the engine with its tangent (Lyapunov, Floquet)."""
     from . import api
 
     api.cosimulate("jeffcott_rigid_stator", "direct", set={"sim.t_end": 0.002})
     api.cosimulate("jeffcott_elastic_casing", "direct", set={"sim.t_end": 0.002})
     api.cosimulate("impact_duffing", "direct", set={"sim.t_end": 5.0})
-    return "co-simulation units"
+    api.lyapunov("impact_duffing", periods=2, transient=1)
+    return "co-simulation units and the variational equations"
 
 
 JOBS: tuple[Callable[[], str], ...] = (_engines, _units)
