@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from typing import Any
 
 from .bearing import (
@@ -12,7 +13,7 @@ from .bearing import (
     oilfilm_force,
     oilfilm_sigma,
 )
-from .declaration import FmuIdentity, Need, UnitType, Wire
+from .declaration import Derived, FmuIdentity, Need, UnitType, Wire
 from .parameters import positive
 from .unit import Unit, planar_motion, real_signal
 
@@ -22,6 +23,12 @@ FORCE_OUTPUTS = (
     real_signal("fx", "N", "bearing force on the journal along x"),
     real_signal("fy", "N", "bearing force on the journal along y"),
 )
+
+
+def film_scale(q: Mapping[str, Any]) -> float:
+    """Capone's force scale sigma (N) of an oil-film bearing with parameters ``q`` (its
+    ``speed`` the journal's spin, rad/s)."""
+    return oilfilm_sigma(q["viscosity"], q["speed"], q["radius"], q["length"], q["clearance"])
 
 
 class _Bearing(Unit):
@@ -48,7 +55,7 @@ class OilFilmBearingUnit(_Bearing):
 
     def _outputs(self) -> dict[str, float]:
         q, u = self.params, self.u
-        sigma = oilfilm_sigma(q["viscosity"], q["speed"], q["radius"], q["length"], q["clearance"])
+        sigma = film_scale(q)
         fx, fy = oilfilm_force(u["x"], u["y"], u["vx"], u["vy"], q["speed"], q["clearance"], sigma)
         if not (math.isfinite(fx) and math.isfinite(fy)):
             ratio = math.hypot(u["x"], u["y"]) / q["clearance"]
@@ -82,6 +89,14 @@ OILFILM_BEARING = UnitType(
     OILFILM_PARAMS,
     FmuIdentity("RubcosimOilFilmBearing"),
     needs=(Need("speed", "rotor.speed"),),
+    derived=(
+        Derived(
+            "sigma",
+            "N",
+            "Capone's force scale sigma = mu w R L (R/c)^2 (L/(2R))^2",
+            film_scale,
+        ),
+    ),
     wiring=JOURNAL_WIRING,
     length_scale=lambda q: q["clearance"],
     kernels=(oilfilm_force,),

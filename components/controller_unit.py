@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 
 from .controller import CONTROLLER_PARAMS, base_delay, delay_at, feedback_force
-from .declaration import FmuIdentity, Need, UnitType, Wire
+from .declaration import Derived, FmuIdentity, Need, UnitType, Wire
 from .parameters import nonnegative
 from .unit import Unit, planar_motion, real_signal
 
@@ -124,6 +124,14 @@ DELAYED_FEEDBACK = UnitType(
     CONTROLLER_PARAMS,
     FmuIdentity("RubcosimDelayedFeedbackController"),
     needs=(Need("speed", "rotor.speed"),),
+    derived=(
+        Derived(
+            "base_delay",
+            "s",
+            "delay tau0 (delay, or delay_periods spin periods)",
+            lambda q: base_delay(q, q["speed"]),
+        ),
+    ),
     wiring=tuple(Wire(s, (f"rotor.{s}",)) for s in ("x", "y", "vx", "vy")),
     kernels=(delay_at, feedback_force),
 )

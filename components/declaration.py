@@ -37,33 +37,47 @@ class DeclarationError(ValueError):
 @dataclass(frozen=True)
 class State:
     """A continuous state the unit integrates: ``name`` (the reference calls it
-    ``role.name``), its unit of measure and its scale kind (a key of :data:`SCALE_KINDS`)."""
+    ``role.name``), its unit of measure, its scale kind (a key of :data:`SCALE_KINDS`)
+    and ``initial``, the unit's parameter giving its initial value (empty for a hybrid
+    unit type, whose ``initial`` kernel gives the initial state)."""
 
     name: str
     unit: str
     scale: str
+    initial: str = ""
 
 
-def planar_states(prefix: str = "") -> tuple[State, ...]:
+def planar_states(prefix: str = "", initial: str | None = None) -> tuple[State, ...]:
     """Position (m, length scale) and velocity (m/s, velocity scale) of a body in the
-    plane: ``x, y, vx, vy``, each name preceded by ``prefix``."""
+    plane: ``x, y, vx, vy``, each name preceded by ``prefix``; their initial values are
+    the parameters ``x0, y0, vx0, vy0`` preceded by ``initial`` (default: ``prefix``)."""
+    before = prefix if initial is None else initial
     return (
-        State(f"{prefix}x", "m", "length"),
-        State(f"{prefix}y", "m", "length"),
-        State(f"{prefix}vx", "m/s", "velocity"),
-        State(f"{prefix}vy", "m/s", "velocity"),
+        State(f"{prefix}x", "m", "length", f"{before}x0"),
+        State(f"{prefix}y", "m", "length", f"{before}y0"),
+        State(f"{prefix}vx", "m/s", "velocity", f"{before}vx0"),
+        State(f"{prefix}vy", "m/s", "velocity", f"{before}vy0"),
     )
 
 
 @dataclass(frozen=True)
-class Provided:
-    """A quantity the unit offers its neighbours, computed from its own parameters
-    (``value(params)``, in ``unit``)."""
+class Quantity:
+    """A quantity computed from a unit's parameters (``value(params)``, in ``unit``)."""
 
     name: str
     unit: str
     description: str
     value: Callable[[Mapping[str, Any]], float]
+
+
+class Provided(Quantity):
+    """A quantity the unit offers its neighbours, computed from its own parameters."""
+
+
+class Derived(Quantity):
+    """A quantity the unit's kernels take that no single parameter gives (a force scale,
+    a delay given in periods), computed from its parameters and those it takes from its
+    neighbours (its :class:`Need` s); the reference packs it next to its parameters."""
 
 
 @dataclass(frozen=True)
@@ -108,6 +122,7 @@ class UnitType:
     set from neighbours or settings).  ``states``: its continuous states, each with an
     explicit scale.  ``needs``/``provides``: parameters taken from and quantities
     offered to neighbours.  ``wiring``: its inputs' default connections.
+    ``derived``: quantities its kernels take, computed from its parameters.
     ``kernels``: the compiled functions holding its physics (shared with the
     reference).  ``mass_scale``: the parameter (kg) that sizes the forces the
     scenario's units exchange (force scale = mass * velocity scale**2 / length scale).
@@ -127,6 +142,7 @@ class UnitType:
     needs: tuple[Need, ...] = ()
     provides: tuple[Provided, ...] = ()
     wiring: tuple[Wire, ...] = ()
+    derived: tuple[Derived, ...] = ()
     kernels: tuple[Callable[..., Any], ...] = ()
     mass_scale: str = ""
     length_scale: Callable[[Mapping[str, Any]], float] | None = None
@@ -180,6 +196,11 @@ class UnitType:
             if s.unit != SCALE_KINDS[s.scale]:
                 expected = SCALE_KINDS[s.scale]
                 fail(f"state {s.name!r} is in {s.unit!r} but a {s.scale} is in {expected!r}")
+            if s.initial and s.initial not in class_params:
+                fail(f"state {s.name!r}: its initial value {s.initial!r} is not a parameter")
+        for d in self.derived:
+            if d.name in class_params:
+                fail(f"derived quantity {d.name!r} has the name of a parameter")
         for n in self.needs:
             for name in filter(None, (n.param, n.reduced_with)):
                 if name not in class_params:

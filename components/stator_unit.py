@@ -19,7 +19,7 @@ from typing import Any
 
 import numpy as np
 
-from .declaration import FmuIdentity, Need, UnitType, Wire, planar_states
+from .declaration import Derived, FmuIdentity, Need, UnitType, Wire, planar_states
 from .parameters import ParameterError, nonnegative
 from .stator import (
     CASING_PARAMS,
@@ -184,6 +184,14 @@ class RigidStatorUnit(Unit):
         return out
 
 
+def penalty_damping(q: Mapping[str, Any]) -> float:
+    """The contact damping (N s/m) of the penalty law: ``contact_damping`` if given (>= 0),
+    else the one giving the restitution for the impact mass."""
+    if q["contact_damping"] >= 0.0:
+        return q["contact_damping"]
+    return damping_from_restitution(q["restitution"], q["contact_stiffness"], q["impact_mass"])
+
+
 class _Penalty(Unit):
     role = "stator"
 
@@ -199,10 +207,7 @@ class _Penalty(Unit):
             )
 
     def _contact_damping(self) -> float:
-        q = self.params
-        if q["contact_damping"] >= 0.0:
-            return q["contact_damping"]
-        return damping_from_restitution(q["restitution"], q["contact_stiffness"], q["impact_mass"])
+        return penalty_damping(self.params)
 
     def _contact(self, cx: float, cy: float, cvx: float, cvy: float):
         """(fx, fy, Fn, gap, gap_rate) on the disc for a stator centred at (cx, cy)."""
@@ -300,6 +305,9 @@ class CasingStatorUnit(_Penalty):
 # What every stator takes from the rotor it meets, and the disc state it reads.
 ROTOR_NEEDS = (Need("speed", "rotor.speed"), Need("disc_radius", "rotor.disc_radius"))
 DISC_WIRING = tuple(Wire(s, (f"rotor.{s}",)) for s in ("x", "y", "vx", "vy"))
+PENALTY_DAMPING = Derived(
+    "penalty_damping", "N s/m", "contact damping of the penalty law", penalty_damping
+)
 
 RIGID_STATOR = UnitType(
     RigidStatorUnit,
@@ -331,6 +339,7 @@ ELASTIC_STATOR = UnitType(
     ELASTIC_PARAMS,
     FmuIdentity("RubcosimElasticStator"),
     needs=(*ROTOR_NEEDS, Need("impact_mass", "rotor.disc_mass")),
+    derived=(PENALTY_DAMPING,),
     wiring=DISC_WIRING,
     length_scale=lambda q: q["clearance"],
     kernels=(contact_geometry, penalty_contact_force, penalty_normal_force),
@@ -340,9 +349,10 @@ CASING_STATOR = UnitType(
     CasingStatorUnit,
     CASING_PARAMS,
     FmuIdentity("RubcosimCasingStator"),
-    states=planar_states("casing_"),
+    states=planar_states("casing_", initial=""),
     # the disc meets the casing: the impact sees their reduced mass
     needs=(*ROTOR_NEEDS, Need("impact_mass", "rotor.disc_mass", reduced_with="mass")),
+    derived=(PENALTY_DAMPING,),
     wiring=DISC_WIRING,
     length_scale=lambda q: q["clearance"],
     kernels=(contact_geometry, penalty_contact_force, penalty_normal_force, unit_rhs),

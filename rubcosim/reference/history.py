@@ -18,15 +18,15 @@ import numpy as np
 from rubcosim.components.dop853 import dense_eval
 
 from .system import (
-    CONTROL_NONE,
+    CONTROLLER_NONE,
     FAMILY_ROTOR,
-    IP_CONTROL,
+    IP_CONTROLLER,
     IP_FAMILY,
     N_DELAYED,
-    P_EPS,
-    P_NU,
-    P_TAU0,
-    P_TON,
+    P_CONTROLLER_BASE_DELAY,
+    P_CONTROLLER_MODULATION_AMPLITUDE,
+    P_CONTROLLER_MODULATION_FREQUENCY,
+    P_CONTROLLER_T_ON,
     current_delay,
     rhs,
 )
@@ -97,7 +97,7 @@ def history_push(hist, t_old, h, t_end, y_old, F, keep_after):
 
 @nb.njit(cache=True)
 def uses_history(p, ip):
-    return ip[IP_FAMILY] == FAMILY_ROTOR and ip[IP_CONTROL] != CONTROL_NONE
+    return ip[IP_FAMILY] == FAMILY_ROTOR and ip[IP_CONTROLLER] != CONTROLLER_NONE
 
 
 @nb.njit(cache=True, inline="always")
@@ -106,7 +106,7 @@ def delayed_state(t, p, ip, hist, yd):
     to nothing: the engines are specialised for systems without delay."""
     if hist is None:
         return
-    if t >= p[P_TON]:
+    if t >= p[P_CONTROLLER_T_ON]:
         history_eval(hist, t - current_delay(t, p), yd)
     else:
         for c in range(N_DELAYED):
@@ -132,12 +132,14 @@ def full_rhs_alloc(t, y, mode, p, ip, hist):
 @nb.njit(cache=True)
 def delayed_arrival(tj, p):
     """Time s > tj at which s - tau(s) = tj: a jump at tj reaches the delayed term."""
-    s = tj + p[P_TAU0]
-    if p[P_EPS] == 0.0:
+    s = tj + p[P_CONTROLLER_BASE_DELAY]
+    if p[P_CONTROLLER_MODULATION_AMPLITUDE] == 0.0:
         return s
     for _ in range(60):  # Newton on a function with derivative 1 - eps nu cos(nu s) > 0
         f = s - current_delay(s, p) - tj
-        df = 1.0 - p[P_EPS] * p[P_NU] * math.cos(p[P_NU] * s)
+        df = 1.0 - p[P_CONTROLLER_MODULATION_AMPLITUDE] * p[
+            P_CONTROLLER_MODULATION_FREQUENCY
+        ] * math.cos(p[P_CONTROLLER_MODULATION_FREQUENCY] * s)
         step = f / df
         s -= step
         if abs(step) <= 1e-15 * max(1.0, abs(s)):
@@ -162,8 +164,8 @@ def next_breakpoint(t, t_end, p, ip, queue, qmeta):
     if not uses_history(p, ip):
         return tb
     eps_t = 4.0 * np.finfo(np.float64).eps * max(1.0, abs(t))
-    if p[P_TON] > t + eps_t:
-        tb = min(tb, p[P_TON])
+    if p[P_CONTROLLER_T_ON] > t + eps_t:
+        tb = min(tb, p[P_CONTROLLER_T_ON])
     cap = queue.shape[0]
     while qmeta[Q_COUNT] > 0 and queue[qmeta[Q_START]] <= t + eps_t:
         qmeta[Q_START] = (qmeta[Q_START] + 1) % cap
@@ -178,4 +180,4 @@ def max_history_age(p, ip):
     """How far back the delay can reach, s."""
     if not uses_history(p, ip):
         return 0.0
-    return p[P_TAU0] + p[P_EPS]
+    return p[P_CONTROLLER_BASE_DELAY] + p[P_CONTROLLER_MODULATION_AMPLITUDE]

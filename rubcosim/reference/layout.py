@@ -1,12 +1,40 @@
-"""Layout of an assembled system's arrays, shared by :mod:`.system` and its families.
+"""Layout of an assembled system's arrays, derived from the unit declarations.
 
 ``ip`` (integers) says which units a system has and where their states are;
-``p`` (reals) holds every parameter in SI units, at the slots named here.
-Event kinds name what an event did (:data:`KIND_NAMES`).  Re-exported by
-:mod:`.system`, where the rest of the package reads them.
+``p`` (reals) holds every parameter in SI units.  For the rotor family (every
+unit type of the registry that is not a hybrid, whole-model type: rotors,
+stators, bearings, controllers) both layouts are computed here from the
+declarations (:mod:`rubcosim.components.registry`), in registry order:
+
+* ``p``: after the system's own slots (:data:`SYSTEM_SLOTS`), one slot per role
+  and quantity the role's types pack (:func:`packed_names`: real parameters
+  that set no initial state, then those taken from neighbours, then derived
+  ones), shared by the role's types that have it: ``P_STATOR_CLEARANCE``.
+* ``ip``: the family and the state count, then per role the code of its type
+  (``IP_STATOR`` holds ``STATOR_NONE`` = 0 or ``STATOR_RIGID``, ... numbered 1,
+  2, ... in registry order), the index of each choice parameter's value
+  (``IP_CONTROLLER_FEEDBACK`` holds ``CONTROLLER_FEEDBACK_POSITION``, ...) and
+  the state offset of each declared state (``IP_ROTOR_JOURNAL_X``; -1 if absent).
+
+Every slot is a module-level integer (numba compiles them as constants into
+the kernels of :mod:`.system`, where this module is re-exported); adding a
+parameter to a declaration adds its slot here, with no edit.  Compiled kernels
+that depend on these numbers are cached in a directory keyed on the sources of
+``rubcosim.components`` (:func:`rubcosim._numba_cache_dir`), so a changed
+declaration never meets a stale kernel.  Event kinds name what an event did
+(:data:`KIND_NAMES`).
 """
 
 from __future__ import annotations
+
+import re
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from rubcosim.components.declaration import UnitType
 
 # Event kinds and the number of event slots are shared with the hybrid unit types.
 from rubcosim.components.hybrid_dispatch import (  # noqa: F401
@@ -20,44 +48,148 @@ from rubcosim.components.hybrid_dispatch import (  # noqa: F401
     N_EVENTS,
 )
 
+# Rotor modes MODE_FREE, MODE_SLIDE_POS, MODE_SLIDE_NEG, MODE_STICK: components.stator.
+# The impact oscillator's modes: stuck on the barrier +D / -D (free: MODE_FREE = 0)
+from rubcosim.components.oscillator_unit import STUCK_LOWER as MODE_STUCK_LOWER
+from rubcosim.components.oscillator_unit import STUCK_UPPER as MODE_STUCK_UPPER
+from rubcosim.components.registry import REGISTRY
+
 FAMILY_ROTOR = 0
 FAMILY_HYBRID = 1  # hybrid unit type i (rubcosim.components.hybrid_dispatch) is 1 + i
 
-# ip layout
-IP_FAMILY = 0
-IP_ROTOR = 1  # 0 jeffcott, 1 two-mass
-IP_STATOR = 2  # 0 none, 1 rigid, 2 elastic, 3 casing
-IP_BEARING = 3  # 0 none, 1 linear, 2 oil film
-IP_CONTROL = 4  # 0 none, 1 position feedback, 2 velocity feedback
-IP_NSTATE = 5
-IP_JOURNAL = 6  # state offset of the journal, -1 if none
-IP_CASING = 7  # state offset of the casing, -1 if none
-N_IP = 8
-
-ROTOR_JEFFCOTT, ROTOR_TWO_MASS = 0, 1
-STATOR_NONE, STATOR_RIGID, STATOR_ELASTIC, STATOR_CASING = 0, 1, 2, 3
-BEARING_NONE, BEARING_LINEAR, BEARING_OILFILM = 0, 1, 2
-CONTROL_NONE, CONTROL_POSITION, CONTROL_VELOCITY = 0, 1, 2
-
-# p layout, rotor family
-P_M, P_C, P_K, P_E, P_W, P_G, P_RD = 0, 1, 2, 3, 4, 5, 6
-P_MJ, P_CJ, P_CSH = 7, 8, 9
-P_D, P_X0, P_Y0, P_R, P_MU, P_KC, P_CC = 10, 11, 12, 13, 14, 15, 16
-P_MS, P_KS, P_CSC = 17, 18, 19
-P_KB, P_CB, P_SIGMA, P_CR = 20, 21, 22, 23
-P_KCTL, P_TAU0, P_EPS, P_NU, P_TON = 24, 25, 26, 27, 28
-# shared
-P_VCHAT = 29  # normal speed below which a rebound counts as settled (chattering ends), m/s
-P_OMEGA_B = 30  # Baumgarte rate of the sustained-contact constraint, rad/s
-N_P = 32
-
-# Rotor modes MODE_FREE, MODE_SLIDE_POS, MODE_SLIDE_NEG, MODE_STICK: components.stator.
-# The impact oscillator's modes: stuck on the barrier +D / -D (free: MODE_FREE = 0)
-from rubcosim.components.oscillator_unit import (  # noqa: E402, F401
-    STUCK_LOWER as MODE_STUCK_LOWER,
-)
-from rubcosim.components.oscillator_unit import (  # noqa: E402, F401
-    STUCK_UPPER as MODE_STUCK_UPPER,
-)
-
 N_DELAYED = 4  # the controller feeds back the disc state (x, y, vx, vy)
+
+# The system's own integer slots: its family and its number of states.
+SYSTEM_INT_SLOTS = ("family", "nstate")
+# The system's own real slots, set from its scales:
+# vchat: normal speed below which a rebound counts as settled (chattering ends), m/s;
+# omega_b: Baumgarte rate of the sustained-contact constraint, rad/s.
+SYSTEM_SLOTS = ("vchat", "omega_b")
+
+
+def constant_name(text: str) -> str:
+    """``text`` as a module constant's name (a choice's value may hold a ``-``)."""
+    return re.sub(r"\W", "_", text).upper()
+
+
+def packed_names(t: UnitType) -> tuple[str, ...]:
+    """The quantities the reference packs into ``p`` for a unit of type ``t``: its real
+    (and integer, boolean) parameters except those giving a state's initial value, the
+    parameters it takes from its neighbours, then its derived quantities."""
+    initial = {s.initial for s in t.states}
+    own = [p.name for p in t.params if p.kind != "choice" and p.name not in initial]
+    return tuple(dict.fromkeys((*own, *(n.param for n in t.needs), *(d.name for d in t.derived))))
+
+
+def choice_params(t: UnitType) -> dict[str, tuple[str, ...]]:
+    """Choice parameter -> its choices, for a unit of type ``t`` (packed into ``ip``)."""
+    return {p.name: p.choices for p in t.params if p.kind == "choice"}
+
+
+@dataclass
+class Layout:
+    """The slots of the rotor family's arrays (see the module's docstring)."""
+
+    roles: tuple[str, ...]
+    p: dict[tuple[str, str], int] = field(default_factory=dict)  # (role, quantity) -> slot
+    ip_type: dict[str, int] = field(default_factory=dict)  # role -> slot of its type code
+    codes: dict[tuple[str, str], int] = field(default_factory=dict)  # (role, type) -> code
+    ip_choice: dict[tuple[str, str], int] = field(default_factory=dict)  # (role, param)
+    ip_state: dict[tuple[str, str], int] = field(default_factory=dict)  # (role, state)
+    constants: dict[str, int] = field(default_factory=dict)  # name -> value, exported
+    n_p: int = 0
+    n_ip: int = 0
+
+    def _constant(self, name: str, value: int) -> None:
+        name = constant_name(name)
+        if name in self.constants:
+            raise ValueError(f"the reference's array layout names {name} twice")
+        self.constants[name] = value
+
+    def new_arrays(self, n_p: int = 0) -> tuple[np.ndarray, np.ndarray]:
+        """Zero ``p`` (at least ``n_p`` long) and ``ip`` with every state offset -1."""
+        ip = np.zeros(self.n_ip, dtype=np.int64)
+        for slot in self.ip_state.values():
+            ip[slot] = -1
+        return np.zeros(max(self.n_p, n_p)), ip
+
+    def pack(self, role: str, t: UnitType, values: Mapping[str, Any], p, ip) -> None:
+        """Write a unit of ``role`` and type ``t`` with ``values`` (its parameters, those
+        from its neighbours and its derived quantities) into ``p`` and ``ip``."""
+        ip[self.ip_type[role]] = self.codes[(role, t.type_name)]
+        for name in packed_names(t):
+            p[self.p[(role, name)]] = values[name]
+        for name, choices in choice_params(t).items():
+            ip[self.ip_choice[(role, name)]] = choices.index(values[name])
+
+
+def rotor_family_layout(types: Iterable[UnitType]) -> Layout:
+    """The layout of the rotor family made of ``types`` (registry order)."""
+    types = [t for t in types if t.hybrid is None]
+    layout = Layout(tuple(dict.fromkeys(t.role for t in types)))
+    for i, name in enumerate(SYSTEM_INT_SLOTS):
+        layout._constant(f"IP_{name}", i)
+    for i, name in enumerate(SYSTEM_SLOTS):
+        layout._constant(f"P_{name}", i)
+    n_ip, n_p = len(SYSTEM_INT_SLOTS), len(SYSTEM_SLOTS)
+
+    def add(table: dict, key: tuple[str, ...] | str, name: str, count: int) -> int:
+        if key in table:
+            return count
+        table[key] = count
+        layout._constant(name, count)
+        return count + 1
+
+    for role in layout.roles:
+        kinds = [t for t in types if t.role == role]
+        n_ip = add(layout.ip_type, role, f"IP_{role}", n_ip)
+        layout._constant(f"{role}_NONE", 0)
+        for code, t in enumerate(kinds, start=1):
+            layout.codes[(role, t.type_name)] = code
+            layout._constant(f"{role}_{t.type_name}", code)
+        for t in kinds:
+            for name in packed_names(t):
+                n_p = add(layout.p, (role, name), f"P_{role}_{name}", n_p)
+            for name, choices in choice_params(t).items():
+                n_ip = add(layout.ip_choice, (role, name), f"IP_{role}_{name}", n_ip)
+                for index, value in enumerate(choices):
+                    key = f"{role}_{name}_{value}"
+                    if layout.constants.get(constant_name(key)) != index:
+                        layout._constant(key, index)  # (a second type with the choice: skip)
+            for s in t.states:
+                n_ip = add(layout.ip_state, (role, s.name), f"IP_{role}_{s.name}", n_ip)
+    layout.n_p, layout.n_ip = n_p, n_ip
+    return layout
+
+
+LAYOUT = rotor_family_layout(REGISTRY)
+# The kernels of .system read the disc at y[0:4]: the rotor must be the first role and
+# declare the disc's states first.
+if LAYOUT.roles[0] != "rotor" or any(
+    tuple(s.name for s in t.states[:4]) != ("x", "y", "vx", "vy")
+    for t in REGISTRY
+    if t.role == "rotor"
+):
+    raise ImportError("the registry must list the rotor types first, disc states first")
+N_P, N_IP = LAYOUT.n_p, LAYOUT.n_ip
+globals().update(LAYOUT.constants)
+
+__all__ = [
+    *LAYOUT.constants,
+    "FAMILY_HYBRID",
+    "FAMILY_ROTOR",
+    "KIND_BREAK",
+    "KIND_CONTACT_OFF",
+    "KIND_CONTACT_ON",
+    "KIND_IMPACT",
+    "KIND_NAMES",
+    "KIND_RELEASE",
+    "KIND_SLIP",
+    "LAYOUT",
+    "MODE_STUCK_LOWER",
+    "MODE_STUCK_UPPER",
+    "N_DELAYED",
+    "N_EVENTS",
+    "N_IP",
+    "N_P",
+]

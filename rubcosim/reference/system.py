@@ -2,14 +2,16 @@
 
 A system is described by two arrays built by :mod:`rubcosim.reference.assemble`:
 ``ip`` (integers: family, which units, state offsets) and ``p`` (reals: every
-parameter in SI units).  The functions here dispatch on them and call the
-kernels of :mod:`rubcosim.components`; they are compiled once with numba and
-shared by both engines, so the ``fast`` and ``accurate`` engines differ only in
-how they take a Runge-Kutta step.
+parameter in SI units), at the slots :mod:`.layout` derives from the unit
+declarations (``P_STATOR_CLEARANCE``, ``IP_STATOR``, ``IP_ROTOR_JOURNAL_X``).
+The functions here dispatch on them and call the kernels of :mod:`rubcosim.components`;
+they are compiled once with numba and shared by both engines, so the ``fast`` and
+``accurate`` engines differ only in how they take a Runge-Kutta step.
 
 Families
 --------
-``FAMILY_ROTOR``: disc (x, y, vx, vy) [+ journal] [+ casing]; stator none,
+``FAMILY_ROTOR``: disc (x, y, vx, vy; always ``y[0:4]``: the rotor is the first role
+of the registry and declares them first) [+ journal] [+ casing]; stator none,
 rigid, elastic or casing; bearing none, linear or oil film (two-mass rotor);
 delayed-feedback controller on the disc.
 ``FAMILY_HYBRID + i``: the hybrid unit type i of the registry, a whole model whose
@@ -32,8 +34,8 @@ Event slots
 -----------
 Four slots (layout and slot numbers: :mod:`.layout`).  ``dirs[k]``: 0 not an
 event, -1 fires when g goes from > 0 to <= 0, +1 the reverse, 2 either way (a
-breakpoint).  ``rates[k] = j`` says
-slot j holds dg_k/dt, used to find grazing contacts inside a step.
+breakpoint).  ``rates[k] = j`` says slot j holds dg_k/dt, used to find grazing
+contacts inside a step.
 """
 
 from __future__ import annotations
@@ -70,20 +72,23 @@ from rubcosim.components.stator import (
     sticking_friction,
 )
 
-# The array layout is part of this module's interface (``system as S; S.P_M``), so
-# all of it is imported here, and every kernel below reads its slots by name.
+# The array layout is part of this module's interface (``system as S; S.P_ROTOR_MASS``),
+# so all of it is imported here, and every kernel below reads its slots by name: module
+# integers, which numba compiles in as constants.
 # ruff: noqa: F405
 from .layout import *  # noqa: F403
 
 
 @nb.njit(cache=True, inline="always")
 def control_active(t: float, p: np.ndarray, ip: np.ndarray) -> bool:
-    return ip[IP_FAMILY] == FAMILY_ROTOR and ip[IP_CONTROL] != CONTROL_NONE and t >= p[P_TON]
+    on = ip[IP_FAMILY] == FAMILY_ROTOR and ip[IP_CONTROLLER] != CONTROLLER_NONE
+    return on and t >= p[P_CONTROLLER_T_ON]
 
 
 @nb.njit(cache=True, inline="always")
 def current_delay(t: float, p: np.ndarray) -> float:
-    return delay_at(t, p[P_TAU0], p[P_EPS], p[P_NU])
+    eps, nu = p[P_CONTROLLER_MODULATION_AMPLITUDE], p[P_CONTROLLER_MODULATION_FREQUENCY]
+    return delay_at(t, p[P_CONTROLLER_BASE_DELAY], eps, nu)
 
 
 @nb.njit(cache=True, inline="always")
@@ -91,9 +96,10 @@ def control_force(t: float, y: np.ndarray, yd: np.ndarray, p: np.ndarray, ip: np
     """Controller force on the disc, N (zero before t_on)."""
     if not control_active(t, p, ip):
         return 0.0, 0.0
-    if ip[IP_CONTROL] == CONTROL_POSITION:
-        return feedback_force(p[P_KCTL], y[0], yd[0]), feedback_force(p[P_KCTL], y[1], yd[1])
-    return feedback_force(p[P_KCTL], y[2], yd[2]), feedback_force(p[P_KCTL], y[3], yd[3])
+    k = p[P_CONTROLLER_GAIN]
+    if ip[IP_CONTROLLER_FEEDBACK] == CONTROLLER_FEEDBACK_POSITION:
+        return feedback_force(k, y[0], yd[0]), feedback_force(k, y[1], yd[1])
+    return feedback_force(k, y[2], yd[2]), feedback_force(k, y[3], yd[3])
 
 
 @nb.njit(cache=True, inline="always")
@@ -101,13 +107,17 @@ def disc_external_force(t: float, y: np.ndarray, yd: np.ndarray, p: np.ndarray, 
     """Every force on the disc except the stator contact, N."""
     x, yy, vx, vy = y[0], y[1], y[2], y[3]
     if ip[IP_ROTOR] == ROTOR_TWO_MASS:
-        j = ip[IP_JOURNAL]
+        j = ip[IP_ROTOR_JOURNAL_X]
         fx, fy = two_mass_disc_force(
             t, x, yy, vx, vy, y[j], y[j + 1], y[j + 2], y[j + 3],
-            p[P_M], p[P_C], p[P_K], p[P_CSH], p[P_E], p[P_W], p[P_G],
+            p[P_ROTOR_MASS], p[P_ROTOR_DAMPING], p[P_ROTOR_STIFFNESS], p[P_ROTOR_SHAFT_DAMPING],
+            p[P_ROTOR_ECCENTRICITY], p[P_ROTOR_SPEED], p[P_ROTOR_GRAVITY],
         )  # fmt: skip
     else:
-        fx, fy = jeffcott_force(t, x, yy, vx, vy, p[P_M], p[P_C], p[P_K], p[P_E], p[P_W], p[P_G])
+        fx, fy = jeffcott_force(
+            t, x, yy, vx, vy, p[P_ROTOR_MASS], p[P_ROTOR_DAMPING], p[P_ROTOR_STIFFNESS],
+            p[P_ROTOR_ECCENTRICITY], p[P_ROTOR_SPEED], p[P_ROTOR_GRAVITY],
+        )  # fmt: skip
     ux, uy = control_force(t, y, yd, p, ip)
     return fx + ux, fy + uy
 
@@ -115,10 +125,10 @@ def disc_external_force(t: float, y: np.ndarray, yd: np.ndarray, p: np.ndarray, 
 @nb.njit(cache=True, inline="always")
 def stator_centre(y: np.ndarray, p: np.ndarray, ip: np.ndarray):
     """Stator centre position and velocity (the casing moves it)."""
-    c = ip[IP_CASING]
+    c = ip[IP_STATOR_CASING_X]
     if c >= 0:
-        return p[P_X0] + y[c], p[P_Y0] + y[c + 1], y[c + 2], y[c + 3]
-    return p[P_X0], p[P_Y0], 0.0, 0.0
+        return p[P_STATOR_X_OFFSET] + y[c], p[P_STATOR_Y_OFFSET] + y[c + 1], y[c + 2], y[c + 3]
+    return p[P_STATOR_X_OFFSET], p[P_STATOR_Y_OFFSET], 0.0, 0.0
 
 
 @nb.njit(cache=True, inline="always")
@@ -132,11 +142,13 @@ def contact_kinematics(y: np.ndarray, p: np.ndarray, ip: np.ndarray):
 
 @nb.njit(cache=True, inline="always")
 def casing_support_force(y: np.ndarray, p: np.ndarray, ip: np.ndarray):
-    c = ip[IP_CASING]
+    c = ip[IP_STATOR_CASING_X]
     if c < 0:
         return 0.0, 0.0
     # the casing mount is an isotropic spring-damper: the linear bearing's law
-    return linear_bearing_force(y[c], y[c + 1], y[c + 2], y[c + 3], p[P_KS], p[P_CSC])
+    return linear_bearing_force(
+        y[c], y[c + 1], y[c + 2], y[c + 3], p[P_STATOR_STIFFNESS], p[P_STATOR_DAMPING]
+    )
 
 
 @nb.njit(cache=True, inline="always")
@@ -144,8 +156,12 @@ def contact_normal_force(t, y, yd, p, ip, dist, nx, ny, vn, vt):
     """Normal contact force on a disc in contact, N (> 0 pushes it inward)."""
     if ip[IP_STATOR] == STATOR_RIGID:
         fx, fy = disc_external_force(t, y, yd, p, ip)
-        return constraint_normal_force(fx, fy, nx, ny, vt, vn, dist, p[P_D], p[P_M], p[P_OMEGA_B])
-    return penalty_normal(dist, vn, p[P_D], p[P_KC], p[P_CC])
+        return constraint_normal_force(
+            fx, fy, nx, ny, vt, vn, dist, p[P_STATOR_CLEARANCE], p[P_ROTOR_MASS], p[P_OMEGA_B]
+        )
+    return penalty_normal(
+        dist, vn, p[P_STATOR_CLEARANCE], p[P_STATOR_CONTACT_STIFFNESS], p[P_STATOR_PENALTY_DAMPING]
+    )
 
 
 @nb.njit(cache=True, inline="always")
@@ -153,8 +169,10 @@ def holding_friction(t, y, yd, p, ip, dist, nx, ny, vn, vt):
     """Tangential force that keeps the slip speed at zero (sticking contact), N."""
     fx, fy = disc_external_force(t, y, yd, p, ip)
     sx, sy = casing_support_force(y, p, ip)
-    ms = p[P_MS] if ip[IP_CASING] >= 0 else math.inf
-    return sticking_friction(-fx * ny + fy * nx, -sx * ny + sy * nx, vt, vn, dist, p[P_M], ms)
+    ms = p[P_STATOR_MASS] if ip[IP_STATOR_CASING_X] >= 0 else math.inf
+    return sticking_friction(
+        -fx * ny + fy * nx, -sx * ny + sy * nx, vt, vn, dist, p[P_ROTOR_MASS], ms
+    )
 
 
 @nb.njit(cache=True, inline="always")
@@ -167,37 +185,44 @@ def contact_force(t, y, yd, mode, p, ip):
     hold = 0.0
     if mode == MODE_STICK:
         hold = holding_friction(t, y, yd, p, ip, dist, nx, ny, vn, vt)
-    fx, fy = contact_force_components(n, friction_force(mode, p[P_MU], n, hold), nx, ny)
+    ft = friction_force(mode, p[P_STATOR_FRICTION], n, hold)
+    fx, fy = contact_force_components(n, ft, nx, ny)
     return fx, fy, n
 
 
 @nb.njit(cache=True, inline="always")
 def bearing_force(y: np.ndarray, p: np.ndarray, ip: np.ndarray):
-    j = ip[IP_JOURNAL]
+    j = ip[IP_ROTOR_JOURNAL_X]
     if j < 0 or ip[IP_BEARING] == BEARING_NONE:
         return 0.0, 0.0
     if ip[IP_BEARING] == BEARING_LINEAR:
-        return linear_bearing_force(y[j], y[j + 1], y[j + 2], y[j + 3], p[P_KB], p[P_CB])
-    return oilfilm_force(y[j], y[j + 1], y[j + 2], y[j + 3], p[P_W], p[P_CR], p[P_SIGMA])
+        return linear_bearing_force(
+            y[j], y[j + 1], y[j + 2], y[j + 3], p[P_BEARING_STIFFNESS], p[P_BEARING_DAMPING]
+        )
+    return oilfilm_force(
+        y[j], y[j + 1], y[j + 2], y[j + 3],
+        p[P_ROTOR_SPEED], p[P_BEARING_CLEARANCE], p[P_BEARING_SIGMA],
+    )  # fmt: skip
 
 
 @nb.njit(cache=True, inline="always")
 def rotor_rhs(t, y, yd, mode, p, ip, dy):
     fx, fy = disc_external_force(t, y, yd, p, ip)
     cfx, cfy, _ = contact_force(t, y, yd, mode, p, ip)
-    planar_newton(y, 0, fx + cfx, fy + cfy, p[P_M], dy)
-    j = ip[IP_JOURNAL]
+    planar_newton(y, 0, fx + cfx, fy + cfy, p[P_ROTOR_MASS], dy)
+    j = ip[IP_ROTOR_JOURNAL_X]
     if j >= 0:
         jx, jy = journal_force(
             y[0], y[1], y[2], y[3], y[j], y[j + 1], y[j + 2], y[j + 3],
-            p[P_K], p[P_CSH], p[P_MJ], p[P_CJ], p[P_G],
+            p[P_ROTOR_STIFFNESS], p[P_ROTOR_SHAFT_DAMPING], p[P_ROTOR_JOURNAL_MASS],
+            p[P_ROTOR_JOURNAL_DAMPING], p[P_ROTOR_GRAVITY],
         )  # fmt: skip
         bx, by = bearing_force(y, p, ip)
-        planar_newton(y, j, jx + bx, jy + by, p[P_MJ], dy)
-    c = ip[IP_CASING]
+        planar_newton(y, j, jx + bx, jy + by, p[P_ROTOR_JOURNAL_MASS], dy)
+    c = ip[IP_STATOR_CASING_X]
     if c >= 0:
         sx, sy = casing_support_force(y, p, ip)
-        planar_newton(y, c, -cfx + sx, -cfy + sy, p[P_MS], dy)
+        planar_newton(y, c, -cfx + sx, -cfy + sy, p[P_STATOR_MASS], dy)
 
 
 @nb.njit(cache=True, inline="always")
@@ -216,7 +241,7 @@ def rotor_events(t, y, yd, mode, p, ip, g, dirs, rates):
         return
     dist, nx, ny, vn, vt = contact_kinematics(y, p, ip)
     if mode == MODE_FREE:
-        g[0] = p[P_D] - dist
+        g[0] = p[P_STATOR_CLEARANCE] - dist
         g[1] = -vn
         dirs[0] = -1
         rates[0] = 1
@@ -226,15 +251,16 @@ def rotor_events(t, y, yd, mode, p, ip, g, dirs, rates):
         g[0] = n
         dirs[0] = -1
     else:
-        g[0] = p[P_D] - dist
+        g[0] = p[P_STATOR_CLEARANCE] - dist
         g[1] = -vn
         dirs[0] = 1
         rates[0] = 1
     if mode == MODE_STICK:
-        g[2] = friction_reserve(p[P_MU], n, holding_friction(t, y, yd, p, ip, dist, nx, ny, vn, vt))
+        hold = holding_friction(t, y, yd, p, ip, dist, nx, ny, vn, vt)
+        g[2] = friction_reserve(p[P_STATOR_FRICTION], n, hold)
         dirs[2] = -1
     else:
-        g[2] = vt + p[P_RD] * p[P_W]
+        g[2] = vt + p[P_ROTOR_DISC_RADIUS] * p[P_ROTOR_SPEED]
         dirs[2] = -1 if mode == MODE_SLIDE_POS else 1
 
 
@@ -258,11 +284,12 @@ def settle_contact(t, y, yd, p, ip, slip_threshold, current):
     dist, nx, ny, vn, vt = contact_kinematics(y, p, ip)
     n = contact_normal_force(t, y, yd, p, ip, dist, nx, ny, vn, vt)
     hold = holding_friction(t, y, yd, p, ip, dist, nx, ny, vn, vt)
-    reserve = friction_reserve(p[P_MU], n, hold)
-    mode = settle_mode(vt + p[P_RD] * p[P_W], slip_threshold, reserve, hold, current)
+    reserve = friction_reserve(p[P_STATOR_FRICTION], n, hold)
+    spin = p[P_ROTOR_DISC_RADIUS] * p[P_ROTOR_SPEED]  # surface speed Rd w
+    mode = settle_mode(vt + spin, slip_threshold, reserve, hold, current)
     if mode == MODE_STICK and ip[IP_STATOR] == STATOR_RIGID:
         # rolling without slip on a fixed stator: tangential speed exactly -Rd w
-        dvt = -p[P_RD] * p[P_W] - vt
+        dvt = -spin - vt
         y[2] -= dvt * ny
         y[3] += dvt * nx
     return mode
@@ -277,12 +304,15 @@ def rotor_apply(k, t, y, yd, mode, p, ip):
         return MODE_FREE, KIND_RELEASE if rigid else KIND_CONTACT_OFF
     if not rigid:
         return settle_contact(t, y, yd, p, ip, p[P_VCHAT], mode), KIND_CONTACT_ON
-    d = p[P_D]
-    dist, nx, ny = contact_geometry(y[0] - p[P_X0], y[1] - p[P_Y0])
+    d = p[P_STATOR_CLEARANCE]
+    dist, nx, ny = contact_geometry(y[0] - p[P_STATOR_X_OFFSET], y[1] - p[P_STATOR_Y_OFFSET])
     # The event locator leaves the disc within round-off of the stator: put it on it.
-    y[0] = p[P_X0] + d * nx
-    y[1] = p[P_Y0] + d * ny
-    vx, vy = rigid_impact(y[2], y[3], nx, ny, p[P_R], p[P_MU], p[P_RD], p[P_W])
+    y[0] = p[P_STATOR_X_OFFSET] + d * nx
+    y[1] = p[P_STATOR_Y_OFFSET] + d * ny
+    vx, vy = rigid_impact(
+        y[2], y[3], nx, ny,
+        p[P_STATOR_RESTITUTION], p[P_STATOR_FRICTION], p[P_ROTOR_DISC_RADIUS], p[P_ROTOR_SPEED],
+    )  # fmt: skip
     vn = vx * nx + vy * ny
     y[2] = vx
     y[3] = vy
@@ -294,7 +324,7 @@ def rotor_apply(k, t, y, yd, mode, p, ip):
     y[3] = vy - vn * ny
     fx, fy = disc_external_force(t, y, yd, p, ip)
     vt = -y[2] * ny + y[3] * nx
-    n = constraint_normal_force(fx, fy, nx, ny, vt, 0.0, d, d, p[P_M], 0.0)
+    n = constraint_normal_force(fx, fy, nx, ny, vt, 0.0, d, d, p[P_ROTOR_MASS], 0.0)
     if n > 0.0:
         return settle_contact(t, y, yd, p, ip, p[P_VCHAT], MODE_FREE), KIND_IMPACT
     return MODE_FREE, KIND_IMPACT
@@ -316,15 +346,15 @@ def output_names(ip: np.ndarray) -> list[str]:
     if ip[IP_FAMILY] >= FAMILY_HYBRID:
         return hybrid_output_names(int(ip[IP_FAMILY]) - FAMILY_HYBRID)
     names = ["rotor.x", "rotor.y", "rotor.vx", "rotor.vy"]
-    if ip[IP_JOURNAL] >= 0:
+    if ip[IP_ROTOR_JOURNAL_X] >= 0:
         names += ["rotor.journal_x", "rotor.journal_y", "rotor.journal_vx", "rotor.journal_vy"]
     if ip[IP_STATOR] != STATOR_NONE:
         names += ["stator.gap", "stator.normal_force", "stator.contact"]
-    if ip[IP_CASING] >= 0:
+    if ip[IP_STATOR_CASING_X] >= 0:
         names += [f"stator.casing_{v}" for v in ("x", "y", "vx", "vy")]
     if ip[IP_BEARING] != BEARING_NONE:
         names += ["bearing.fx", "bearing.fy"]
-    if ip[IP_CONTROL] != CONTROL_NONE:
+    if ip[IP_CONTROLLER] != CONTROLLER_NONE:
         names += ["controller.ux", "controller.uy"]
     return names
 
@@ -345,17 +375,17 @@ def outputs(t, y, yd, mode, p, ip, out):
         hybrid_outputs(ip[IP_FAMILY] - FAMILY_HYBRID, t, y, mode, p, out)
         return
     i = copy_body(y, 0, out, 0)
-    j = ip[IP_JOURNAL]
+    j = ip[IP_ROTOR_JOURNAL_X]
     if j >= 0:
         i = copy_body(y, j, out, i)
     if ip[IP_STATOR] != STATOR_NONE:
         cx, cy, _, _ = stator_centre(y, p, ip)
-        out[i] = p[P_D] - math.hypot(y[0] - cx, y[1] - cy)
+        out[i] = p[P_STATOR_CLEARANCE] - math.hypot(y[0] - cx, y[1] - cy)
         _, _, n = contact_force(t, y, yd, mode, p, ip)
         out[i + 1] = n
         out[i + 2] = 0.0 if mode == MODE_FREE else (2.0 if mode == MODE_STICK else 1.0)
         i += 3
-    c = ip[IP_CASING]
+    c = ip[IP_STATOR_CASING_X]
     if c >= 0:
         i = copy_body(y, c, out, i)
     if ip[IP_BEARING] != BEARING_NONE:
@@ -363,7 +393,7 @@ def outputs(t, y, yd, mode, p, ip, out):
         out[i] = bx
         out[i + 1] = by
         i += 2
-    if ip[IP_CONTROL] != CONTROL_NONE:
+    if ip[IP_CONTROLLER] != CONTROLLER_NONE:
         ux, uy = control_force(t, y, yd, p, ip)
         out[i] = ux
         out[i + 1] = uy
