@@ -120,6 +120,20 @@ def nonnegative(
     return real(name, default, unit, description, 0.0, example=example)
 
 
+def planar_initial_state(prefix: str, body: str) -> tuple[Param, ...]:
+    """The initial state of a planar body: ``{prefix}x0``, ``y0``, ``vx0``, ``vy0`` (m, m/s),
+    0 by default; ``body`` names it in the descriptions."""
+    return tuple(
+        real(f"{prefix}{name}0", 0.0, unit, f"initial {body} {what} along {axis}")
+        for name, unit, what, axis in (
+            ("x", "m", "displacement", "x"),
+            ("y", "m", "displacement", "y"),
+            ("vx", "m/s", "velocity", "x"),
+            ("vy", "m/s", "velocity", "y"),
+        )
+    )
+
+
 def choice(name: str, default: str, description: str, choices: tuple[str, ...]) -> Param:
     return Param(name, default, "", description, "choice", choices=choices)
 

@@ -15,15 +15,12 @@ from __future__ import annotations
 
 import math
 
-from .jit import njit
-from .parameters import nonnegative, positive, real
+import numpy as np
 
-_STATE = (
-    real("x0", 0.0, "m", "initial disc displacement along x"),
-    real("y0", 0.0, "m", "initial disc displacement along y"),
-    real("vx0", 0.0, "m/s", "initial disc velocity along x"),
-    real("vy0", 0.0, "m/s", "initial disc velocity along y"),
-)
+from .jit import njit
+from .parameters import nonnegative, planar_initial_state, positive
+
+_STATE = planar_initial_state("", "disc")
 
 JEFFCOTT_PARAMS = (
     positive("mass", None, "kg", "disc mass m", example=10.0),
@@ -43,10 +40,7 @@ TWO_MASS_PARAMS = (
     positive("journal_mass", None, "kg", "journal mass in the bearing", example=2.0),
     nonnegative("journal_damping", 0.0, "N s/m", "viscous damping of the journal to ground"),
     nonnegative("shaft_damping", 0.0, "N s/m", "damping of the shaft between journal and disc"),
-    real("journal_x0", 0.0, "m", "initial journal displacement along x"),
-    real("journal_y0", 0.0, "m", "initial journal displacement along y"),
-    real("journal_vx0", 0.0, "m/s", "initial journal velocity along x"),
-    real("journal_vy0", 0.0, "m/s", "initial journal velocity along y"),
+    *planar_initial_state("journal_", "journal"),
 )
 
 
@@ -77,68 +71,36 @@ def jeffcott_force(
 
 
 @njit
-def shaft_force(
-    xd: float,
-    yd: float,
-    vxd: float,
-    vyd: float,
-    xj: float,
-    yj: float,
-    vxj: float,
-    vyj: float,
-    k: float,
-    cs: float,
-) -> tuple[float, float]:
-    """Force of the shaft on the disc, N (the journal feels the opposite)."""
-    return -k * (xd - xj) - cs * (vxd - vxj), -k * (yd - yj) - cs * (vyd - vyj)
+def shaft_force(y: np.ndarray, i: int, j: int, k: float, cs: float) -> tuple[float, float]:
+    """Force of the shaft on the disc, N (the journal feels the opposite); the disc's
+    state (x, y, vx, vy) in ``y[i:i + 4]``, the journal's in ``y[j:j + 4]``."""
+    return (
+        -k * (y[i] - y[j]) - cs * (y[i + 2] - y[j + 2]),
+        -k * (y[i + 1] - y[j + 1]) - cs * (y[i + 3] - y[j + 3]),
+    )
 
 
 @njit
 def two_mass_disc_force(
-    t: float,
-    xd: float,
-    yd: float,
-    vxd: float,
-    vyd: float,
-    xj: float,
-    yj: float,
-    vxj: float,
-    vyj: float,
-    m: float,
-    c: float,
-    k: float,
-    cs: float,
-    e: float,
-    w: float,
-    g: float,
-) -> tuple[float, float]:
+    t: float, y: np.ndarray, i: int, j: int, m: float, c: float, k: float, cs: float,
+    e: float, w: float, g: float,
+) -> tuple[float, float]:  # fmt: skip
     """All forces on the disc of a two-mass rotor except contact and control, N:
-    unbalance, damping to ground, gravity and the shaft to the journal."""
-    fx, fy = jeffcott_force(t, xd, yd, vxd, vyd, m, c, 0.0, e, w, g)
-    sx, sy = shaft_force(xd, yd, vxd, vyd, xj, yj, vxj, vyj, k, cs)
+    unbalance, damping to ground, gravity and the shaft to the journal (states as in
+    :func:`shaft_force`)."""
+    fx, fy = jeffcott_force(t, y[i], y[i + 1], y[i + 2], y[i + 3], m, c, 0.0, e, w, g)
+    sx, sy = shaft_force(y, i, j, k, cs)
     return fx + sx, fy + sy
 
 
 @njit
 def journal_force(
-    xd: float,
-    yd: float,
-    vxd: float,
-    vyd: float,
-    xj: float,
-    yj: float,
-    vxj: float,
-    vyj: float,
-    k: float,
-    cs: float,
-    mj: float,
-    cj: float,
-    g: float,
+    y: np.ndarray, i: int, j: int, k: float, cs: float, mj: float, cj: float, g: float
 ) -> tuple[float, float]:
     """All forces on the journal except the bearing's, N: the shaft (reaction of
-    :func:`shaft_force`), damping to ground and gravity."""
-    sx, sy = shaft_force(xd, yd, vxd, vyd, xj, yj, vxj, vyj, k, cs)
-    return -sx - cj * vxj, -sy - cj * vyj - mj * g
+    :func:`shaft_force`, states as there), damping to ground and gravity."""
+    sx, sy = shaft_force(y, i, j, k, cs)
+    return -sx - cj * y[j + 2], -sy - cj * y[j + 3] - mj * g
 
 
 def free_whirl(mass: float, damping: float, stiffness: float, eccentricity: float, speed: float):

@@ -145,7 +145,7 @@ class TwoMassRotorUnit(_Rotor):
     def _disc_force(self, t: float, y: np.ndarray) -> tuple[float, float]:
         q = self.params
         return two_mass_disc_force(
-            t, *y, q["mass"], q["damping"], q["stiffness"], q["shaft_damping"],
+            t, y, 0, 4, q["mass"], q["damping"], q["stiffness"], q["shaft_damping"],
             q["eccentricity"], q["speed"], q["gravity"],
         )  # fmt: skip
 

@@ -15,7 +15,7 @@ from __future__ import annotations
 import math
 
 from .jit import njit
-from .parameters import nonnegative, positive, real
+from .parameters import nonnegative, planar_initial_state, positive, real
 
 # Contact modes of a disc on a stator: free, sliding with positive or negative slip,
 # sticking.  The reference engine's mode variable and the rigid stator unit's
@@ -52,10 +52,7 @@ CASING_PARAMS = (
     positive("mass", None, "kg", "casing mass ms", example=5.0),
     positive("stiffness", None, "N/m", "casing support stiffness ks", example=2e6),
     nonnegative("damping", 0.0, "N s/m", "casing support damping cs"),
-    real("x0", 0.0, "m", "initial casing displacement along x"),
-    real("y0", 0.0, "m", "initial casing displacement along y"),
-    real("vx0", 0.0, "m/s", "initial casing velocity along x"),
-    real("vy0", 0.0, "m/s", "initial casing velocity along y"),
+    *planar_initial_state("", "casing"),
 )
 
 

@@ -58,10 +58,8 @@ def unit_rhs(kind, t, y, p, u, t0, dy):
         # state: disc (x, y, vx, vy), journal (x, y, vx, vy); inputs fx, fy on the disc
         # and journal_fx, journal_fy
         m, k, g, cs, mj, cj = p[0], p[2], p[5], p[6], p[7], p[8]
-        fx, fy = two_mass_disc_force(
-            t, y[0], y[1], y[2], y[3], y[4], y[5], y[6], y[7], m, p[1], k, cs, p[3], p[4], g
-        )
-        jx, jy = journal_force(y[0], y[1], y[2], y[3], y[4], y[5], y[6], y[7], k, cs, mj, cj, g)
+        fx, fy = two_mass_disc_force(t, y, 0, 4, m, p[1], k, cs, p[3], p[4], g)
+        jx, jy = journal_force(y, 0, 4, k, cs, mj, cj, g)
         planar_newton(y, 0, fx + input_at(u, 0, s), fy + input_at(u, 1, s), m, dy)
         planar_newton(y, 4, jx + input_at(u, 2, s), jy + input_at(u, 3, s), mj, dy)
     elif kind == CASING:

@@ -58,7 +58,7 @@ def test_jeffcott_and_shaft_forces():
     ux, uy = unbalance_force(math.pi / 2 / 10.0, 1.0, 1e-3, 10.0)
     assert ux == pytest.approx(0.0, abs=1e-15)
     assert uy == pytest.approx(0.1)
-    sx, sy = shaft_force(1.0, 0.0, 0.0, 0.0, 0.5, 0.0, 0.0, 0.0, 10.0, 0.0)
+    sx, sy = shaft_force(np.array([1.0, 0.0, 0.0, 0.0, 0.5, 0.0, 0.0, 0.0]), 0, 4, 10.0, 0.0)
     assert (sx, sy) == (-5.0, 0.0)
 
 
@@ -215,12 +215,12 @@ def test_penalty_normal_force_and_components():
 def test_two_mass_forces_obey_action_and_reaction():
     from rubcosim.components.rotor import journal_force, two_mass_disc_force
 
-    state = (2e-5, -1e-5, 0.01, 0.02, 5e-6, 3e-6, -0.004, 0.001)
+    state = np.array([2e-5, -1e-5, 0.01, 0.02, 5e-6, 3e-6, -0.004, 0.001])
     # with no unbalance, ground damping or gravity only the shaft acts: equal and opposite
-    dx, dy = two_mass_disc_force(0.3, *state, 10.0, 0.0, 1e6, 50.0, 0.0, 300.0, 0.0)
-    jx, jy = journal_force(*state, 1e6, 50.0, 2.0, 0.0, 0.0)
+    dx, dy = two_mass_disc_force(0.3, state, 0, 4, 10.0, 0.0, 1e6, 50.0, 0.0, 300.0, 0.0)
+    jx, jy = journal_force(state, 0, 4, 1e6, 50.0, 2.0, 0.0, 0.0)
     assert (dx + jx, dy + jy) == pytest.approx((0.0, 0.0), abs=1e-12)
     assert dx == pytest.approx(-1e6 * 1.5e-5 - 50.0 * 0.014)
     # ground damping and gravity on the journal
-    gx, gy = journal_force(*state, 1e6, 50.0, 2.0, 30.0, 9.81)
+    gx, gy = journal_force(state, 0, 4, 1e6, 50.0, 2.0, 30.0, 9.81)
     assert (gx - jx, gy - jy) == pytest.approx((30.0 * 0.004, -30.0 * 0.001 - 2.0 * 9.81))

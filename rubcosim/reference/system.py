@@ -109,9 +109,9 @@ def disc_external_force(t: float, y: np.ndarray, yd: np.ndarray, p: np.ndarray, 
     if ip[IP_ROTOR] == ROTOR_TWO_MASS:
         j = ip[IP_ROTOR_JOURNAL_X]
         fx, fy = two_mass_disc_force(
-            t, x, yy, vx, vy, y[j], y[j + 1], y[j + 2], y[j + 3],
-            p[P_ROTOR_MASS], p[P_ROTOR_DAMPING], p[P_ROTOR_STIFFNESS], p[P_ROTOR_SHAFT_DAMPING],
-            p[P_ROTOR_ECCENTRICITY], p[P_ROTOR_SPEED], p[P_ROTOR_GRAVITY],
+            t, y, 0, j, p[P_ROTOR_MASS], p[P_ROTOR_DAMPING], p[P_ROTOR_STIFFNESS],
+            p[P_ROTOR_SHAFT_DAMPING], p[P_ROTOR_ECCENTRICITY], p[P_ROTOR_SPEED],
+            p[P_ROTOR_GRAVITY],
         )  # fmt: skip
     else:
         fx, fy = jeffcott_force(
@@ -213,8 +213,7 @@ def rotor_rhs(t, y, yd, mode, p, ip, dy):
     j = ip[IP_ROTOR_JOURNAL_X]
     if j >= 0:
         jx, jy = journal_force(
-            y[0], y[1], y[2], y[3], y[j], y[j + 1], y[j + 2], y[j + 3],
-            p[P_ROTOR_STIFFNESS], p[P_ROTOR_SHAFT_DAMPING], p[P_ROTOR_JOURNAL_MASS],
+            y, 0, j, p[P_ROTOR_STIFFNESS], p[P_ROTOR_SHAFT_DAMPING], p[P_ROTOR_JOURNAL_MASS],
             p[P_ROTOR_JOURNAL_DAMPING], p[P_ROTOR_GRAVITY],
         )  # fmt: skip
         bx, by = bearing_force(y, p, ip)
