@@ -69,6 +69,11 @@ def make_node(role: str, type_name: Any, given: Mapping[str, Any]) -> UnitNode:
     return UnitNode(role, type_name, resolve(role, kinds[role][type_name], given))
 
 
+def _fmi_type(kind: str) -> str:
+    """The FMI type of a declared signal kind ("real" or "integer")."""
+    return "Integer" if kind == "integer" else "Real"
+
+
 @dataclass(frozen=True)
 class ForeignNode:
     """A unit known only by its signals (a foreign FMU)."""
@@ -76,6 +81,11 @@ class ForeignNode:
     name: str
     inputs: tuple[str, ...]
     outputs: tuple[str, ...]
+    # signals it has but that cannot be connected, with the reason (a String variable)
+    refused: Mapping[str, str] = field(default_factory=dict)
+    # FMI type of each signal; an Integer, Boolean or Enumeration input takes only a
+    # source of its own type
+    types: Mapping[str, str] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
@@ -142,6 +152,11 @@ def build_graph(
         {
             **{r: [s.name for s in d.outputs] for r, d in declared.items()},
             **{f.name: list(f.outputs) for f in foreign},
+        },
+        refused={f.name: f.refused for f in foreign},
+        types={
+            **{r: {s.name: _fmi_type(s.kind) for s in d.outputs} for r, d in declared.items()},
+            **{f.name: f.types for f in foreign},
         },
     )
     return ModelGraph(dict(units), tuple(connections), {f.name: f for f in foreign})

@@ -76,9 +76,19 @@ def check_connections(
     connections: Sequence[Connection],
     inputs: Mapping[str, Sequence[str]],
     outputs: Mapping[str, Sequence[str]],
+    refused: Mapping[str, Mapping[str, str]] | None = None,
+    types: Mapping[str, Mapping[str, str]] | None = None,
 ) -> None:
-    """Every target must be an input and every source an output of a unit present."""
+    """Every target must be an input and every source an output of a unit present.
+
+    ``refused`` names, per unit, signals it has that cannot be connected, with the
+    reason; ``types`` the FMI type of signals (a unit's outputs, a foreign FMU's inputs
+    and outputs): an Integer, Boolean or Enumeration input takes only a source of its
+    own type."""
+    refused = refused or {}
+    types = types or {}
     for c in connections:
+        _check_refused(c, refused, types)
         unit, signal = _split(c.target, "connections")
         if unit not in inputs:
             raise CouplingError(
@@ -100,3 +110,31 @@ def check_connections(
                     f"connections.{c.target}: {ss!r} is not an output of {su} "
                     f"(outputs: {', '.join(outputs[su])})"
                 )
+
+
+def _check_refused(
+    c: Connection,
+    refused: Mapping[str, Mapping[str, str]],
+    types: Mapping[str, Mapping[str, str]],
+) -> None:
+    unit, signal = _split(c.target, "connections")
+    for u, sig in [(unit, signal), *(_split(s, f"connections.{c.target}") for s in c.sources)]:
+        reason = refused.get(u, {}).get(sig)
+        if reason:
+            raise CouplingError(f"connections.{c.target}: {u}.{sig} is {reason}")
+    wanted = _family(types.get(unit, {}).get(signal, "Real"))
+    if wanted == "Real":
+        return
+    for s in c.sources:
+        su, ss = _split(s, f"connections.{c.target}")
+        given = _family(types.get(su, {}).get(ss, "Real"))
+        if given != wanted:
+            raise CouplingError(
+                f"connections.{c.target}: {unit}.{signal} is an {wanted} input; "
+                f"its source {su}.{ss} is {given}"
+            )
+
+
+def _family(fmi_type: str) -> str:
+    """Enumerations are integers (FMI 2.0 sets and gets them with the Integer calls)."""
+    return "Integer" if fmi_type == "Enumeration" else fmi_type

@@ -66,8 +66,15 @@ class FmuUnit:
         self.name = name or self.md.modelName
         self.variables = {v.name: v for v in self.md.modelVariables}
         self.inputs = [v.name for v in self.md.modelVariables if v.causality == "input"]
-        self.outputs = [v.name for v in self.md.modelVariables if v.causality == "output"]
+        # what the master reads after every step: the numeric outputs (a String output
+        # is neither recorded nor connected, see orchestrator.foreign)
+        self.outputs = [
+            v.name
+            for v in self.md.modelVariables
+            if v.causality == "output" and v.type in ("Real", "Integer", "Boolean", "Enumeration")
+        ]
         self.messages: list[str] = []
+        self._groups: dict[tuple[str, ...], dict[str, tuple[list[str], list[int]]]] = {}
         self._lock = threading.Lock()
         self._dir = extract(str(self.path))
         self._callbacks = self._make_callbacks()
@@ -107,25 +114,33 @@ class FmuUnit:
             if var.type == "Real":
                 self._fmu.setReal(vr, [float(value)])
             elif var.type in ("Integer", "Enumeration"):
-                self._fmu.setInteger(vr, [int(value)])
+                self._fmu.setInteger(vr, [round(value)])
             elif var.type == "Boolean":
                 self._fmu.setBoolean(vr, [bool(value)])
             else:
                 self._fmu.setString(vr, [str(value)])
 
     def get_values(self, names: list[str]) -> dict[str, Any]:
+        """The values of ``names``: one FMI call per type, value references resolved once."""
+        groups = self._groups.get(tuple(names))
+        if groups is None:
+            groups = {}
+            for name in names:
+                var = self._variable(name)
+                kind = "Integer" if var.type == "Enumeration" else var.type
+                groups.setdefault(kind, ([], []))
+                groups[kind][0].append(name)
+                groups[kind][1].append(var.valueReference)
+            self._groups[tuple(names)] = groups
         out: dict[str, Any] = {}
-        for name in names:
-            var = self._variable(name)
-            vr = [var.valueReference]
-            if var.type == "Real":
-                out[name] = self._fmu.getReal(vr)[0]
-            elif var.type in ("Integer", "Enumeration"):
-                out[name] = self._fmu.getInteger(vr)[0]
-            elif var.type == "Boolean":
-                out[name] = self._fmu.getBoolean(vr)[0]
-            else:
-                out[name] = self._fmu.getString(vr)[0]
+        getters = {
+            "Real": self._fmu.getReal,
+            "Integer": self._fmu.getInteger,
+            "Boolean": self._fmu.getBoolean,
+            "String": self._fmu.getString,
+        }
+        for kind, (group, refs) in groups.items():
+            out.update(zip(group, getters[kind](refs), strict=True))
         return out
 
     def set_input(self, name: str, value: float) -> None:
@@ -134,8 +149,16 @@ class FmuUnit:
     def set_input_polynomial(self, name: str, value: float, d1: float, d2: float) -> None:
         """The input's value and first two time derivatives for the next step
         (fmi2SetReal, then fmi2SetRealInputDerivatives; needs canInterpolateInputs)."""
-        vr = self._variable(name).valueReference
+        var = self._variable(name)
+        vr = var.valueReference
         self._call(f"set {name}", self.set_values, {name: value})
+        if var.type != "Real":  # a discrete input has no derivatives: its value holds
+            if d1 or d2:
+                raise FmuError(
+                    f"fmi2SetRealInputDerivatives {name}: {self.name}.{name} is an {var.type} "
+                    "input; it has no derivatives"
+                )
+            return
         self._call(
             f"fmi2SetRealInputDerivatives {name}",
             self._fmu.setRealInputDerivatives,

@@ -14,6 +14,13 @@ output depends on the inputs at the same instant is read from the model
 structure (outputs with no dependencies listed are assumed to depend on all
 inputs, as FMI 2.0 says).  The monolithic engines cannot simulate a foreign
 FMU, so such a scenario runs only as a co-simulation.
+
+Variables of every FMI 2.0 type are handled: Real, Integer, Boolean and
+Enumeration outputs are numbers, recorded and connected like any signal (an
+Integer, Boolean or Enumeration input takes only a source of its own type,
+never a Real one); String variables can be given start values but are
+neither recorded nor connected, and a scenario that asks for one is refused
+with a message naming it.
 """
 
 from __future__ import annotations
@@ -43,6 +50,19 @@ class ForeignFmu:
     feedthrough: bool = True
     can_get_set_state: bool = False
     can_interpolate: bool = False
+    types: dict[str, str] = field(default_factory=dict)  # FMI type of each input and output
+    strings: tuple[str, ...] = ()  # String inputs and outputs: not recorded, not connected
+
+    def refused(self) -> dict[str, str]:
+        """Why each String variable cannot be connected (for the wiring's messages)."""
+        return {name: STRING_REFUSED for name in self.strings}
+
+
+NUMERIC = ("Real", "Integer", "Boolean", "Enumeration")
+STRING_REFUSED = (
+    "a String variable; only Real, Integer, Boolean and Enumeration signals are recorded "
+    "and connected"
+)
 
 
 def foreign_fmu(name: str, table: Mapping[str, Any], base_dir: Path) -> ForeignFmu:
@@ -69,8 +89,10 @@ def foreign_fmu(name: str, table: Mapping[str, Any], base_dir: Path) -> ForeignF
             f"(fmiVersion {md.fmiVersion}, co-simulation: {md.coSimulation is not None})"
         )
     variables = {v.name: v for v in md.modelVariables}
-    inputs = tuple(v.name for v in md.modelVariables if v.causality == "input")
-    outputs = tuple(v.name for v in md.modelVariables if v.causality == "output")
+    signals = [v for v in md.modelVariables if v.causality in ("input", "output")]
+    strings = tuple(v.name for v in signals if v.type not in NUMERIC)
+    inputs = tuple(v.name for v in signals if v.causality == "input" and v.type in NUMERIC)
+    outputs = tuple(v.name for v in signals if v.causality == "output" and v.type in NUMERIC)
     start = table.get("start", {})
     if not isinstance(start, Mapping):
         raise ForeignFmuError(f"{where}.start must be a table of start values")
@@ -82,6 +104,8 @@ def foreign_fmu(name: str, table: Mapping[str, Any], base_dir: Path) -> ForeignF
     if not isinstance(record, list) or not all(isinstance(r, str) for r in record):
         raise ForeignFmuError(f"{where}.record must be a list of output names")
     for r in record:
+        if r in strings:
+            raise ForeignFmuError(f"{where}.record: {r!r} is {STRING_REFUSED}")
         if r not in outputs:
             raise ForeignFmuError(
                 f"{where}.record: {r!r} is not an output of {path.name} "
@@ -97,6 +121,8 @@ def foreign_fmu(name: str, table: Mapping[str, Any], base_dir: Path) -> ForeignF
         feedthrough=_feedthrough(md, inputs),
         can_get_set_state=bool(md.coSimulation.canGetAndSetFMUstate),
         can_interpolate=bool(md.coSimulation.canInterpolateInputs),
+        types={v.name: v.type for v in signals},
+        strings=strings,
     )
 
 

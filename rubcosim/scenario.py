@@ -282,7 +282,10 @@ def build_scenario(
         graph = build_graph(
             built,
             connections,
-            [ForeignNode(n, tuple(f.inputs), tuple(f.outputs)) for n, f in fmus.items()],
+            [
+                ForeignNode(n, tuple(f.inputs), tuple(f.outputs), f.refused(), f.types)
+                for n, f in fmus.items()
+            ],
         )
     except CouplingError as exc:
         raise ScenarioError(str(exc)) from None

@@ -111,3 +111,44 @@ def test_a_foreign_fmu_without_state_refuses_rollback(example):
         run_cosim(sc)
     r = run_cosim(sc, replace(sc.cosim, adaptive=False, events="step"))
     assert r.ok, r.message
+
+
+def test_foreign_outputs_of_every_fmi_type(example):
+    # the ball also has a String output (phase) and a Boolean one (resting): by default
+    # every numeric output is recorded, the String one is not, and nothing crashes
+    data = tomllib.loads(example.read_text())
+    table = {k: v for k, v in data["fmus"]["ball"].items() if k != "record"}
+    sc = build_scenario({**data, "fmus": {"ball": table}, "sim": {"t_end": 0.06}},
+                        source=str(example))  # fmt: skip
+    assert sc.fmus["ball"].strings == ("phase",)
+    r = run_cosim(sc)
+    assert r.ok, r.message
+    resting, h = r.output("ball.resting"), r.output("ball.h")
+    # the ball is at rest by about 41 ms (1e-4 m drop, e = 0.8): resting follows h
+    assert resting[0] == 0.0 and resting[-1] == 1.0 and h[-1] == 0.0
+    assert np.all(h[resting == 1.0] == 0.0)
+    assert "ball.phase" not in r.names
+    # asking to record or connect the String output is refused, naming it
+    with pytest.raises(ScenarioError, match="fmus.ball.record: 'phase' is a String variable"):
+        build_scenario({**data, "fmus": {"ball": {**table, "record": ["h", "phase"]}}},
+                       source=str(example))  # fmt: skip
+    wired = {**data, "connections": {"rotor.fy": ["stator.fy", "ball.phase"]}}
+    with pytest.raises(ScenarioError, match="rotor.fy: ball.phase is a String variable"):
+        build_scenario(wired, source=str(example))
+    # a Boolean output drives a Real input (as 0 or 1)
+    wired = {**data, "connections": {"rotor.fy": ["stator.fy", "ball.resting"]}}
+    assert build_scenario(wired, source=str(example)).graph.connections
+
+
+def test_a_discrete_input_takes_only_a_source_of_its_type():
+    from rubcosim.components.wiring import Connection, CouplingError, check_connections
+
+    inputs = {"fmu": ["count", "level"], "a": []}
+    outputs = {"fmu": [], "a": ["n", "x"]}
+    types = {"fmu": {"count": "Integer", "level": "Real"}, "a": {"n": "Enumeration", "x": "Real"}}
+    check_connections([Connection("fmu.count", ("a.n",))], inputs, outputs, types=types)
+    check_connections([Connection("fmu.level", ("a.n",))], inputs, outputs, types=types)
+    with pytest.raises(
+        CouplingError, match="fmu.count is an Integer input; its source a.x is Real"
+    ):
+        check_connections([Connection("fmu.count", ("a.x",))], inputs, outputs, types=types)

@@ -7,7 +7,9 @@
  * got, set and serialised, so a master can roll it back.
  *
  * Value references: 0 h [m] (output), 1 v [m/s] (output), 2 bounces (Integer output),
- * 3 g [m/s2], 4 e [1], 5 h0 [m], 6 v0 [m/s] (fixed parameters).
+ * 3 g [m/s2], 4 e [1], 5 h0 [m], 6 v0 [m/s] (fixed parameters), 7 phase (String output:
+ * "rising", "falling" or "resting"), 8 resting (Boolean output): outputs of the other FMI
+ * types, as tools export them.
  */
 #include <math.h>
 #include <stdlib.h>
@@ -131,10 +133,15 @@ fmi2Status fmi2SetInteger(fmi2Component c, const fmi2ValueReference vr[], size_t
     (void)c; (void)vr; (void)v;
     return n ? fmi2Error : fmi2OK;
 }
+static int resting(const state_t *s) { return s->h <= 0.0 && s->v == 0.0; }
+
 fmi2Status fmi2GetBoolean(fmi2Component c, const fmi2ValueReference vr[], size_t n, fmi2Boolean v[])
 {
-    (void)c; (void)vr; (void)v;
-    return n ? fmi2Error : fmi2OK;
+    for (size_t i = 0; i < n; i++) {
+        if (vr[i] != 8) return fmi2Error;
+        v[i] = resting(&((ball_t *)c)->s) ? fmi2True : fmi2False;
+    }
+    return fmi2OK;
 }
 fmi2Status fmi2SetBoolean(fmi2Component c, const fmi2ValueReference vr[], size_t n, const fmi2Boolean v[])
 {
@@ -143,8 +150,12 @@ fmi2Status fmi2SetBoolean(fmi2Component c, const fmi2ValueReference vr[], size_t
 }
 fmi2Status fmi2GetString(fmi2Component c, const fmi2ValueReference vr[], size_t n, fmi2String v[])
 {
-    (void)c; (void)vr; (void)v;
-    return n ? fmi2Error : fmi2OK;
+    const state_t *s = &((ball_t *)c)->s;
+    for (size_t i = 0; i < n; i++) {
+        if (vr[i] != 7) return fmi2Error;
+        v[i] = resting(s) ? "resting" : (s->v > 0.0 ? "rising" : "falling");
+    }
+    return fmi2OK;
 }
 fmi2Status fmi2SetString(fmi2Component c, const fmi2ValueReference vr[], size_t n, const fmi2String v[])
 {

@@ -44,12 +44,19 @@ MODEL_DESCRIPTION = """<?xml version="1.0" encoding="UTF-8"?>
       description="initial height"><Real unit="m" start="1.0"/></ScalarVariable>
     <ScalarVariable name="v0" valueReference="6" causality="parameter" variability="fixed"
       description="initial upward velocity"><Real unit="m/s" start="0.0"/></ScalarVariable>
+    <ScalarVariable name="phase" valueReference="7" causality="output" variability="discrete"
+      initial="calculated" description="rising, falling or resting"><String/></ScalarVariable>
+    <ScalarVariable name="resting" valueReference="8" causality="output"
+      variability="discrete" initial="calculated" description="at rest on the floor">
+      <Boolean/></ScalarVariable>
   </ModelVariables>
   <ModelStructure>
     <Outputs><Unknown index="1" dependencies=""/><Unknown index="2" dependencies=""/>
-      <Unknown index="3" dependencies=""/></Outputs>
+      <Unknown index="3" dependencies=""/><Unknown index="8" dependencies=""/>
+      <Unknown index="9" dependencies=""/></Outputs>
     <InitialUnknowns><Unknown index="1" dependencies="6"/><Unknown index="2" dependencies="7"/>
-      <Unknown index="3" dependencies=""/></InitialUnknowns>
+      <Unknown index="3" dependencies=""/><Unknown index="8" dependencies=""/>
+      <Unknown index="9" dependencies=""/></InitialUnknowns>
   </ModelStructure>
 </fmiModelDescription>
 """
