@@ -324,3 +324,55 @@ def test_building_after_loading_an_fmu_in_the_same_process(built_fmus, tmp_path)
     )  # fmt: skip
     assert proc.returncode == 0, proc.stderr[-2000:]
     assert (tmp_path / "RubcosimLinearBearing.fmu").is_file()
+
+
+def _slave(path, name: str):
+    from fmpy import extract, read_model_description
+    from fmpy.fmi2 import FMU2Slave
+
+    md = read_model_description(str(path))
+    fmu = FMU2Slave(guid=md.guid, unzipDirectory=extract(str(path)),
+                    modelIdentifier=md.coSimulation.modelIdentifier, instanceName=name)  # fmt: skip
+    fmu.instantiate()
+    return fmu, {v.name: v.valueReference for v in md.modelVariables}
+
+
+def test_a_state_restored_right_after_instantiation_is_where_the_next_step_starts(built_fmus):
+    # fmusim --initial-fmu-state-file: instantiate, (start values,) fmi2DeSerializeFMUstate,
+    # fmi2SetFMUstate, fmi2DoStep, with no initialisation mode in between
+    from fmpy.fmi1 import FMICallException
+
+    path = built_fmus["RubcosimJeffcottRotor"]
+    a, vr = _slave(path, "a")
+    a.setReal([vr["eccentricity"], vr["damping"]], [5e-5, 316.2])
+    a.setupExperiment(startTime=0.0)
+    a.enterInitializationMode()
+    a.exitInitializationMode()
+    t, h = 0.0, 0.0025
+    for _ in range(20):
+        a.doStep(t, h)
+        t += h
+    blob = a.serializeFMUstate(a.getFMUstate())
+    a.doStep(t, h)
+    want = a.getReal([vr["x"], vr["vx"]])
+    for start_values in (False, True):
+        b, _ = _slave(path, "b")
+        if start_values:  # the same values, set before the restore
+            b.setReal([vr["eccentricity"], vr["damping"]], [5e-5, 316.2])
+        b.setFMUstate(b.deSerializeFMUstate(blob))
+        b.doStep(t, h)
+        assert b.getReal([vr["x"], vr["vx"]]) == want  # bit for bit
+        # a step from a time the FMU is not at fails, and changes nothing
+        with pytest.raises(FMICallException, match="fmi2DoStep"):
+            b.doStep(0.0, h)
+        assert b.getReal([vr["x"], vr["vx"]]) == want
+        # after the restore: the same value again is fine; another makes the next step fail
+        b.setReal([vr["damping"]], [316.2])
+        b.doStep(t + h, h)
+        b.setReal([vr["damping"]], [100.0])
+        with pytest.raises(FMICallException, match="fmi2DoStep"):
+            b.doStep(t + 2 * h, h)
+        b.terminate()
+        b.freeInstance()
+    a.terminate()
+    a.freeInstance()
