@@ -251,3 +251,42 @@ def test_fmpy_validate(probe_fmu: Path) -> None:
     from fmpy.validation import validate_fmu
 
     assert validate_fmu(str(probe_fmu)) == []
+
+
+def test_c_host_says_which_python_replaces_a_missing_recorded_one(
+    host: Path, probe_fmu: Path, tmp_path: Path
+) -> None:
+    """The build's interpreter is gone (its venv renamed): the FMU still runs, on another
+    Python, and says so at fmi2Warning with the reason, instead of switching silently."""
+    recorded = _recorded(probe_fmu)
+
+    def break_executable(unzipped: Path) -> None:
+        (unzipped / RUNTIME_FILE).write_text(
+            f"executable=/nonexistent/rubcosim/bin/python\nlibpython={recorded['libpython']}\n"
+            f"soname={recorded['soname']}\nversion={recorded['version']}\n"
+        )
+
+    proc = _run(host, probe_fmu, tmp_path, prepare=break_executable,
+                extra_env={"RUBCOSIM_PYTHON": sys.executable})  # fmt: skip
+    _assert_clean(proc)
+    _assert_values(proc.stdout)
+    proc = _run(host, probe_fmu, tmp_path, prepare=break_executable)
+    assert "[Warning]" in proc.stderr, proc.stderr
+    assert "recorded executable /nonexistent/rubcosim/bin/python: not an executable" in proc.stderr
+
+
+def test_c_host_names_a_module_the_chosen_python_lacks(
+    host: Path, probe_fmu: Path, tmp_path: Path
+) -> None:
+    system_python = Path("/usr/bin/python3.11")
+    recorded = _recorded(probe_fmu)
+    probe = subprocess.run([str(system_python), "-c", "import numpy"], capture_output=True)
+    if not system_python.is_file() or probe.returncode == 0:
+        pytest.skip("needs a Python 3.11 without numpy at /usr/bin/python3.11")
+    proc = _run(host, probe_fmu, tmp_path, prepare=_break_runtime_record,
+                extra_env={"RUBCOSIM_LIBPYTHON": recorded["libpython"],
+                           "RUBCOSIM_PYTHON": str(system_python)})  # fmt: skip
+    assert proc.returncode == 4, proc.stderr  # fmi2Instantiate returned NULL
+    assert "cannot import numpy" in proc.stderr
+    assert "RUBCOSIM_PYTHON" in proc.stderr and "RUBCOSIM_LIBPYTHON" in proc.stderr
+    assert "Traceback" not in proc.stderr and "Segmentation" not in proc.stderr

@@ -610,6 +610,44 @@ static void append_hint(msgbuf *m, const runtime_record *rec)
 
 /* Make sure an initialised interpreter exists in this process.  Returns 0 on success; on failure
  * `err` holds a message for the user.  `info` collects notes logged on success. */
+/* The modules every FMU imports beyond the standard library.  Checked right after starting
+ * Python, so that a missing one is named in one message (pythonfmu reports an import error only
+ * with logging on, and as a traceback). */
+static const char *const REQUIRED_MODULES[] = {"numpy", "scipy"};
+
+/* Write the required modules the running interpreter cannot import into `out` (comma
+ * separated); returns how many.  Takes and releases the GIL. */
+static int missing_modules(char *out, size_t size)
+{
+    typedef int (*gil_ensure_t)(void);
+    typedef void (*gil_release_t)(int);
+    typedef void *(*import_t)(const char *);
+    typedef void (*void_t)(void);
+    typedef void (*decref_t)(void *);
+    gil_ensure_t ensure = (gil_ensure_t)dlsym(RTLD_DEFAULT, "PyGILState_Ensure");
+    gil_release_t release = (gil_release_t)dlsym(RTLD_DEFAULT, "PyGILState_Release");
+    import_t import = (import_t)dlsym(RTLD_DEFAULT, "PyImport_ImportModule");
+    void_t clear = (void_t)dlsym(RTLD_DEFAULT, "PyErr_Clear");
+    decref_t decref = (decref_t)dlsym(RTLD_DEFAULT, "Py_DecRef");
+    out[0] = '\0';
+    if (!ensure || !release || !import || !clear || !decref) return 0; /* cannot check */
+    int count = 0;
+    int gil = ensure();
+    for (size_t i = 0; i < sizeof REQUIRED_MODULES / sizeof REQUIRED_MODULES[0]; i++) {
+        void *module = import(REQUIRED_MODULES[i]);
+        if (module != NULL) {
+            decref(module);
+            continue;
+        }
+        clear();
+        size_t used = strlen(out);
+        snprintf(out + used, size - used, "%s%s", count ? ", " : "", REQUIRED_MODULES[i]);
+        count++;
+    }
+    release(gil);
+    return count;
+}
+
 static int ensure_python(const char *resources, msgbuf *err, msgbuf *info, int *warn)
 {
     /* 1. Python already in the process (Python host, or a tool embedding Python). */
@@ -694,9 +732,18 @@ static int ensure_python(const char *resources, msgbuf *err, msgbuf *info, int *
         else
             *warn = 1;
     }
-    if (exe[0] == '\0' && rec.executable[0] != '\0' &&
-        accept_executable("recorded executable", rec.executable, lib_version, 0, &tried))
-        copy_str(exe, sizeof exe, rec.executable);
+    if (exe[0] == '\0' && rec.executable[0] != '\0') {
+        if (accept_executable("recorded executable", rec.executable, lib_version, 0, &tried))
+            copy_str(exe, sizeof exe, rec.executable);
+        else
+            *warn = 1; /* the build's interpreter is gone: say which one replaces it, and why */
+    }
+    if (!rec.found) {
+        *warn = 1;
+        msg_add(&tried, "\n  - runtime record %s: %s, so the build's interpreter is unknown",
+                rec.file[0] ? rec.file : "(none)",
+                resources ? "missing or unreadable" : "no fmuResourceLocation given");
+    }
     char lib_path[PATH_MAX] = "";
     Dl_info lib_info;
     if (dladdr((void *)api.is_initialized, &lib_info) != 0 && lib_info.dli_fname != NULL)
@@ -743,6 +790,16 @@ static int ensure_python(const char *resources, msgbuf *err, msgbuf *info, int *
     api.save_thread();
     snprintf(g_python_desc, sizeof g_python_desc, "libpython %s, executable %s",
              lib_path[0] ? lib_path : loaded, exe[0] ? exe : "(built-in prefix)");
+    char missing[256] = "";
+    if (missing_modules(missing, sizeof missing) > 0) {
+        msg_add(err,
+                "rubcosim FMU loader: the Python it started (%s) cannot import %s, which the FMU "
+                "needs. Set RUBCOSIM_PYTHON to the python of an environment that has them, and "
+                "RUBCOSIM_LIBPYTHON to that Python's shared libpython if it is another build. "
+                "How it chose this one:%s",
+                g_python_desc, missing, tried.text);
+        return -1;
+    }
     return 0;
 }
 
