@@ -144,6 +144,7 @@ def open_units(
     whatever the backend), and its foreign FMUs (always through fmpy), with their
     feedthrough and input-interpolation flags; FMU instances are freed on exit."""
     from .fmu_unit import FmuUnit
+    from .isolated_fmu import IsolatedFmu
 
     params = unit_parameters(scenario, settings)
     types = {role: u.type for role, u in scenario.graph.units.items()}
@@ -160,13 +161,15 @@ def open_units(
         paths = fmu_paths(fmu_types, fmu_dir) if as_fmu else {}
         for role in types:
             if role in as_fmu:
-                units[role] = FmuUnit(paths[role], name=role, params=params[role], start_time=t0)
+                kind = IsolatedFmu if settings.isolate else FmuUnit
+                units[role] = kind(paths[role], name=role, params=params[role], start_time=t0)
                 interpolates[role] = bool(units[role].md.coSimulation.canInterpolateInputs)
             else:
                 units[role] = classes[role](name=role, **params[role])
                 interpolates[role] = True
         for name, f in foreign.items():
-            units[name] = FmuUnit(f.path, name=name, params=f.start, start_time=t0)
+            kind = IsolatedFmu if settings.isolate or f.isolate else FmuUnit
+            units[name] = kind(f.path, name=name, params=f.start, start_time=t0)
             interpolates[name] = f.can_interpolate
         yield units, feedthrough, interpolates
     finally:

@@ -26,6 +26,7 @@ from fmpy.fmi2 import (
 )
 
 from rubcosim.components.unit import StepError
+from .foreign import NUMERIC_TYPES
 
 # A pythonfmu FMU imports `pythonfmu` from its own resources unless the package is already
 # loaded, and that copy has no build binaries: load the installed one first, so that building
@@ -71,7 +72,7 @@ class FmuUnit:
         self.outputs = [
             v.name
             for v in self.md.modelVariables
-            if v.causality == "output" and v.type in ("Real", "Integer", "Boolean", "Enumeration")
+            if v.causality == "output" and v.type in NUMERIC_TYPES
         ]
         self.messages: list[str] = []
         self._groups: dict[tuple[str, ...], dict[str, tuple[list[str], list[int]]]] = {}

@@ -6,6 +6,7 @@ A scenario names them in ``[fmus.NAME]`` tables::
     path = "bouncing_ball.fmu"   # relative to the scenario file
     start = { e = 0.8 }          # start values set before initialisation (optional)
     record = ["h", "v"]          # outputs to record (optional; default: every output)
+    isolate = true               # in a worker process: a crash fails the run (optional)
 
 The master steps them like any unit, through fmpy, whatever the backend of
 the rubcosim units (so ``--backend direct`` mixes in-process units and FMUs).
@@ -30,7 +31,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-KEYS = ("path", "start", "record")
+KEYS = ("path", "start", "record", "isolate")
+# FMI types read as numbers; a String variable is neither recorded nor connected
+NUMERIC_TYPES = ("Real", "Integer", "Boolean", "Enumeration")
 
 
 class ForeignFmuError(ValueError):
@@ -50,6 +53,7 @@ class ForeignFmu:
     feedthrough: bool = True
     can_get_set_state: bool = False
     can_interpolate: bool = False
+    isolate: bool = False  # run it in a worker process (a crash fails the run, not the process)
     types: dict[str, str] = field(default_factory=dict)  # FMI type of each input and output
     strings: tuple[str, ...] = ()  # String inputs and outputs: not recorded, not connected
 
@@ -58,7 +62,6 @@ class ForeignFmu:
         return {name: STRING_REFUSED for name in self.strings}
 
 
-NUMERIC = ("Real", "Integer", "Boolean", "Enumeration")
 STRING_REFUSED = (
     "a String variable; only Real, Integer, Boolean and Enumeration signals are recorded "
     "and connected"
@@ -90,9 +93,9 @@ def foreign_fmu(name: str, table: Mapping[str, Any], base_dir: Path) -> ForeignF
         )
     variables = {v.name: v for v in md.modelVariables}
     signals = [v for v in md.modelVariables if v.causality in ("input", "output")]
-    strings = tuple(v.name for v in signals if v.type not in NUMERIC)
-    inputs = tuple(v.name for v in signals if v.causality == "input" and v.type in NUMERIC)
-    outputs = tuple(v.name for v in signals if v.causality == "output" and v.type in NUMERIC)
+    strings = tuple(v.name for v in signals if v.type not in NUMERIC_TYPES)
+    inputs = tuple(v.name for v in signals if v.causality == "input" and v.type in NUMERIC_TYPES)
+    outputs = tuple(v.name for v in signals if v.causality == "output" and v.type in NUMERIC_TYPES)
     start = table.get("start", {})
     if not isinstance(start, Mapping):
         raise ForeignFmuError(f"{where}.start must be a table of start values")
@@ -100,6 +103,9 @@ def foreign_fmu(name: str, table: Mapping[str, Any], base_dir: Path) -> ForeignF
         var = variables.get(key)
         if var is None or var.causality not in ("parameter", "input"):
             raise ForeignFmuError(f"{where}.start.{key}: not a parameter or input of {path.name}")
+    isolate = table.get("isolate", False)
+    if not isinstance(isolate, bool):
+        raise ForeignFmuError(f"{where}.isolate = {isolate!r} must be true or false")
     record = table.get("record", list(outputs))
     if not isinstance(record, list) or not all(isinstance(r, str) for r in record):
         raise ForeignFmuError(f"{where}.record must be a list of output names")
@@ -121,6 +127,7 @@ def foreign_fmu(name: str, table: Mapping[str, Any], base_dir: Path) -> ForeignF
         feedthrough=_feedthrough(md, inputs),
         can_get_set_state=bool(md.coSimulation.canGetAndSetFMUstate),
         can_interpolate=bool(md.coSimulation.canInterpolateInputs),
+        isolate=isolate,
         types={v.name: v.type for v in signals},
         strings=strings,
     )

@@ -30,6 +30,7 @@ class CosimSettings:
 
     backend: str = "direct"  # "direct" (in-process units) or "fmu" (FMUs through fmpy)
     fmu_units: tuple[str, ...] = ()  # units run as FMUs whatever the backend (mixed runs)
+    isolate: bool = False  # every FMU in a worker process: a crash fails the run, not ours
     algorithm: str = "gauss-seidel"  # or "jacobi"
     extrapolation: int = 2  # polynomial order of the coupled inputs over a step: 0, 1, 2
     adaptive: bool = True  # macro step from the coupling error estimate (PI control)
@@ -111,9 +112,9 @@ def cosim_settings(raw: Mapping[str, Any]) -> CosimSettings:
             v[key] = _integer(key, value, 1, 100)
         elif key == "max_events_per_period":
             v[key] = _integer(key, value, 1, 10**7)
-        elif key == "adaptive":
+        elif key in ("adaptive", "isolate"):
             if not isinstance(value, bool):
-                raise SettingsError(f"cosim.adaptive = {value!r} must be true or false")
+                raise SettingsError(f"cosim.{key} = {value!r} must be true or false")
             v[key] = value
         elif key in ("order", "fmu_units"):
             if not isinstance(value, list) or not all(isinstance(s, str) for s in value):

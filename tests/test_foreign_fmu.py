@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import math
 import shutil
 import sys
@@ -152,3 +153,33 @@ def test_a_discrete_input_takes_only_a_source_of_its_type():
         CouplingError, match="fmu.count is an Integer input; its source a.x is Real"
     ):
         check_connections([Connection("fmu.count", ("a.x",))], inputs, outputs, types=types)
+
+
+def test_an_isolated_fmu_that_crashes_fails_the_run_and_keeps_its_results(example, tmp_path):
+    # the ball segfaults in its 400th fmi2DoStep; run in a worker process, it ends the run
+    # with status failed, naming it and the time, and what was computed before is kept
+    data = tomllib.loads(example.read_text())
+    ball = {**data["fmus"]["ball"], "isolate": True,
+            "start": {**data["fmus"]["ball"]["start"], "crash_at_step": 400}}  # fmt: skip
+    sc = build_scenario({**data, "fmus": {"ball": ball}}, source=str(example))
+    r = run_cosim(sc)
+    assert r.status == "failed"
+    assert "ball: the FMU's worker process died (killed by SIGSEGV) in do_step at t =" in r.message
+    assert 0.0 < r.t[-1] < sc.sim["t_end"] and r.t.size > 10
+    assert np.max(np.abs(r.output("ball.h") - ball_height(r.t, 1e-4, 0.8))) < 1e-9
+    # isolated and healthy: the same results as in-process, bit for bit
+    healthy = build_scenario({**data, "sim": {**data["sim"], "t_end": 0.01},
+                              "fmus": {"ball": {**ball, "start": data["fmus"]["ball"]["start"]}}},
+                             source=str(example))  # fmt: skip
+    isolated = run_cosim(healthy)
+    healthy.fmus["ball"] = replace(healthy.fmus["ball"], isolate=False)
+    in_process = run_cosim(healthy)
+    assert isolated.ok and in_process.ok
+    assert np.array_equal(isolated.values, in_process.values)
+    # the command line writes the report of the failed run, with its results
+    out = tmp_path / "crash"
+    assert main(["run", str(example), "--backend", "direct", "--set", "ball.crash_at_step=400",
+                 "--set", "cosim.isolate=true", "--out", str(out)]) != 0  # fmt: skip
+    report = json.loads((out / "report.json").read_text())
+    assert report["status"] == "failed" and "SIGSEGV" in report["message"]
+    assert sorted(p.name for p in out.iterdir() if p.suffix == ".csv")  # the results so far

@@ -9,8 +9,10 @@
  * Value references: 0 h [m] (output), 1 v [m/s] (output), 2 bounces (Integer output),
  * 3 g [m/s2], 4 e [1], 5 h0 [m], 6 v0 [m/s] (fixed parameters), 7 phase (String output:
  * "rising", "falling" or "resting"), 8 resting (Boolean output): outputs of the other FMI
- * types, as tools export them.
+ * types, as tools export them; 9 crash_at_step (Integer parameter, 0 = never): the FMU
+ * segfaults in its n-th fmi2DoStep call, standing in for a defective FMU.
  */
+#include <signal.h>
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -26,6 +28,7 @@ typedef struct {
     state_t s;
     fmi2CallbackFunctions cb;
     char name[128];
+    int crash_at_step, steps; /* not part of the FMU state: every fmi2DoStep call counts */
 } ball_t;
 
 static const double V_MIN = 1e-6; /* m/s: slower rebounds come to rest */
@@ -123,15 +126,19 @@ fmi2Status fmi2SetReal(fmi2Component c, const fmi2ValueReference vr[], size_t n,
 fmi2Status fmi2GetInteger(fmi2Component c, const fmi2ValueReference vr[], size_t n, fmi2Integer v[])
 {
     for (size_t i = 0; i < n; i++) {
-        if (vr[i] != 2) return fmi2Error;
-        v[i] = ((ball_t *)c)->s.bounces;
+        if (vr[i] == 2) v[i] = ((ball_t *)c)->s.bounces;
+        else if (vr[i] == 9) v[i] = ((ball_t *)c)->crash_at_step;
+        else return fmi2Error;
     }
     return fmi2OK;
 }
 fmi2Status fmi2SetInteger(fmi2Component c, const fmi2ValueReference vr[], size_t n, const fmi2Integer v[])
 {
-    (void)c; (void)vr; (void)v;
-    return n ? fmi2Error : fmi2OK;
+    for (size_t i = 0; i < n; i++) {
+        if (vr[i] != 9) return fmi2Error;
+        ((ball_t *)c)->crash_at_step = v[i];
+    }
+    return fmi2OK;
 }
 static int resting(const state_t *s) { return s->h <= 0.0 && s->v == 0.0; }
 
@@ -231,6 +238,7 @@ fmi2Status fmi2DoStep(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean noPri
 {
     (void)noPrior;
     ball_t *b = c;
+    if (b->crash_at_step > 0 && ++b->steps == b->crash_at_step) raise(SIGSEGV);
     state_t *s = &b->s;
     if (!(h >= 0.0)) {
         log_error(b, "bouncing ball: negative step");

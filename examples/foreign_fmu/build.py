@@ -49,6 +49,9 @@ MODEL_DESCRIPTION = """<?xml version="1.0" encoding="UTF-8"?>
     <ScalarVariable name="resting" valueReference="8" causality="output"
       variability="discrete" initial="calculated" description="at rest on the floor">
       <Boolean/></ScalarVariable>
+    <ScalarVariable name="crash_at_step" valueReference="9" causality="parameter"
+      variability="fixed" description="segfault in this fmi2DoStep call (0: never)">
+      <Integer start="0"/></ScalarVariable>
   </ModelVariables>
   <ModelStructure>
     <Outputs><Unknown index="1" dependencies=""/><Unknown index="2" dependencies=""/>
