@@ -14,11 +14,17 @@ $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
 	$(PY) -m pip install --quiet -e '.[dev]'
-	@echo "compiling the numba kernels into the cache once (rubcosim warm-up)"
-	$(VENV)/bin/rubcosim warm-up
 	touch $(STAMP)
 
-run: $(STAMP)
+# Compile the numba kernels into the cache once (make run does it; the tests compile
+# what they use themselves, in their two workers).
+WARM := $(VENV)/.warm-stamp
+$(WARM): $(STAMP) $(wildcard components/*.py rubcosim/reference/*.py)
+	@echo "compiling the numba kernels into the cache once (rubcosim warm-up)"
+	$(VENV)/bin/rubcosim warm-up
+	touch $(WARM)
+
+run: $(WARM)
 	$(VENV)/bin/rubcosim run $(FLAGSHIP) --engine accurate --out $(OUT)
 	$(VENV)/bin/rubcosim check $(FLAGSHIP) --out $(OUT)-check
 
