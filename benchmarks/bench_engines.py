@@ -50,13 +50,9 @@ reference runs and the rtol scans are included).
 from __future__ import annotations
 
 import argparse
-import datetime
 import json
 import math
-import os
-import platform
 import statistics
-import subprocess
 import sys
 import time
 from collections.abc import Callable
@@ -64,10 +60,9 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-import numba
 import numpy as np
-import scipy
 from scipy.integrate import solve_ivp
+from stamp import stamp
 
 from rubcosim.components.oscillator import free_acceleration, impact_velocity
 from rubcosim.components.rotor import jeffcott_force
@@ -518,15 +513,6 @@ def markdown(report: dict[str, Any]) -> str:
     return "\n".join(lines)
 
 
-def _git_commit() -> str:
-    try:
-        return subprocess.run(
-            ["git", "rev-parse", "HEAD"], cwd=REPO, capture_output=True, text=True, check=True
-        ).stdout.strip()
-    except (OSError, subprocess.CalledProcessError):
-        return "unknown"
-
-
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--out", type=Path, default=DEFAULT_OUT, help="JSON result file")
@@ -548,23 +534,15 @@ def main(argv: list[str] | None = None) -> int:
         if c.name in args.cases
     ]
     report = {
-        "meta": {
-            "date": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
-            "git_commit": _git_commit(),
-            "python": platform.python_version(),
-            "numpy": np.__version__,
-            "scipy": scipy.__version__,
-            "numba": numba.__version__,
-            "platform": platform.platform(),
-            "cpu_count": os.cpu_count(),
-            "periods": args.periods,
-            "repeats": args.repeats,
-            "target_error": args.target,
-            "reference": f"simulate(engine='accurate', rtol={REFERENCE_RTOL:g})",
-            "rtol_scan": list(RTOL_SCAN),
-            "rtol_rule": "loosest rtol with error <= target whose next tighter rtol also passes",
-            "total_wall_s": None,
-        },
+        "meta": stamp(
+            periods=args.periods,
+            repeats=args.repeats,
+            target_error=args.target,
+            reference=f"simulate(engine='accurate', rtol={REFERENCE_RTOL:g})",
+            rtol_scan=list(RTOL_SCAN),
+            rtol_rule="loosest rtol with error <= target whose next tighter rtol also passes",
+            total_wall_s=None,
+        ),
         "cases": cases,
     }
     report["meta"]["total_wall_s"] = time.perf_counter() - start

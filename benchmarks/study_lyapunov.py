@@ -18,18 +18,14 @@ Writes ``lyapunov_feng_yang.json`` and ``.md`` to ``--out`` (default
 from __future__ import annotations
 
 import argparse
-import datetime
 import json
 import math
-import os
-import platform
-import subprocess
 import time
 from pathlib import Path
 
 import numba
 import numpy as np
-import scipy
+from stamp import stamp
 
 from rubcosim.analysis.lyapunov import lyapunov_report, lyapunov_spectrum
 from rubcosim.analysis.maps import StroboscopicMap
@@ -40,15 +36,6 @@ REPO = Path(__file__).resolve().parents[1]
 SCENARIO = REPO / "scenarios" / "feng_yang_attractors.toml"
 GRID = (200, 200, -2.0, 1.0, -2.0, 2.0)
 P1 = [13950, 14147, 14148, 14149, 14150, 14347]
-
-
-def _git_commit() -> str:
-    try:
-        return subprocess.run(
-            ["git", "rev-parse", "HEAD"], cwd=REPO, capture_output=True, text=True, check=True
-        ).stdout.strip()
-    except (OSError, subprocess.CalledProcessError):
-        return "unknown"
 
 
 def visited_cells(system, y0: np.ndarray, skip: int, keep: int) -> dict[int, int]:
@@ -77,18 +64,10 @@ def main(argv: list[str] | None = None) -> int:
     cells = visited_cells(system, y0, args.transient, min(args.periods, 5000))
     b, R, T = 0.02, 0.8, lyap.interval
     report = {
-        "meta": {
-            "date": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
-            "git_commit": _git_commit(),
-            "python": platform.python_version(),
-            "numpy": np.__version__,
-            "scipy": scipy.__version__,
-            "numba": numba.__version__,
-            "platform": platform.platform(),
-            "cpu_count": os.cpu_count(),
-            "command": "benchmarks/study_lyapunov.py "
-            f"--periods {args.periods} --transient {args.transient}",
-        },
+        "meta": stamp(
+            command="benchmarks/study_lyapunov.py "
+            f"--periods {args.periods} --transient {args.transient}"
+        ),
         "start": {"hsu_cell": P1[0], "x": float(y0[0]), "v": float(y0[1])},
         "spectrum": lyapunov_report(lyap),
         "liouville_closed_form": -b + 2.0 * math.log(R) * lyap.impacts / (lyap.intervals * T),

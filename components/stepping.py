@@ -24,19 +24,8 @@ import math
 
 import numpy as np
 
+from . import dop853 as rk
 from . import hybrid_dispatch
-from .dop853 import (
-    N_EXT,
-    N_STAGES,
-    C,
-    dense_eval,
-    dense_from_stages,
-    error_norm,
-    next_step,
-    solution_point,
-    stage_point,
-    workspace,
-)
 from .hybrid_dispatch import KIND_IMPACT, N_EVENTS
 from .jit import USE_NUMBA, njit
 from .root_finding import F_CUR, MAX_TRIALS, X_CUR, bracket, crossed_end
@@ -77,15 +66,15 @@ def _rk_step(kind, t, y, f, h, mode, p, u, t0, K, y_new, f_new, ytmp, dy):
     n = y.shape[0]
     for i in range(n):
         K[0, i] = f[i]
-    for s in range(1, N_STAGES):
-        stage_point(K, s, y, h, ytmp)
-        _rhs(kind, t + C[s] * h, ytmp, mode, p, u, t0, dy)
+    for s in range(1, rk.N_STAGES):
+        rk.stage_point(K, s, y, h, ytmp)
+        _rhs(kind, t + rk.C[s] * h, ytmp, mode, p, u, t0, dy)
         for i in range(n):
             K[s, i] = dy[i]
-    solution_point(K, y, h, y_new)
+    rk.solution_point(K, y, h, y_new)
     _rhs(kind, t + h, y_new, mode, p, u, t0, f_new)
     for i in range(n):
-        K[N_STAGES, i] = f_new[i]
+        K[rk.N_STAGES, i] = f_new[i]
 
 
 @njit
@@ -112,7 +101,7 @@ def _left_side(kind, k, sgn, t, h, y, F, mode, p, ybuf, g, dirs, rates):
         tm = t + math.ldexp(h, -i)
         if tm <= ts:
             continue
-        dense_eval(t, h, y, F, tm, ybuf, ybuf.shape[0])
+        rk.dense_eval(t, h, y, F, tm, ybuf, ybuf.shape[0])
         _events(kind, tm, ybuf, mode, p, g, dirs, rates)
         if sgn * g[k] < 0.0:
             break
@@ -144,7 +133,7 @@ def _first_event(kind, t, h, y, F, mode, p, g_a, dirs, g_b, ybuf, g, dirs_s, rat
             for _ in range(MAX_TRIALS):
                 if brent_advance(s):
                     break
-                dense_eval(t, h, y, F, s[X_CUR], ybuf, ybuf.shape[0])
+                rk.dense_eval(t, h, y, F, s[X_CUR], ybuf, ybuf.shape[0])
                 _events(kind, s[X_CUR], ybuf, mode, p, g, dirs_s, rates_s)
                 s[F_CUR] = sgn * g[k]
             te = crossed_end(s)
@@ -165,7 +154,7 @@ def advance(kind, t0, t_end, y, mode, h, p, u, rtol, atol):
     :data:`TOO_MANY_EVENTS` (``y`` is then partly advanced; the caller restores it).
     """
     n = y.shape[0]
-    K, F, f, f_new, y_new, ytmp, dy = workspace(n)
+    K, F, f, f_new, y_new, ytmp, dy = rk.workspace(n)
     tol = np.full(n, atol)
     g_a, g_b, g = np.empty(N_EVENTS), np.empty(N_EVENTS), np.empty(N_EVENTS)
     dirs, dirs_b = np.empty(N_EVENTS, np.int64), np.empty(N_EVENTS, np.int64)
@@ -188,7 +177,7 @@ def advance(kind, t0, t_end, y, mode, h, p, u, rtol, atol):
             t_new = t_end
         hs = t_new - t
         _rk_step(kind, t, y, f, hs, mode, p, u, t0, K, y_new, f_new, ytmp, dy)
-        accepted, h_proposed = next_step(error_norm(K, hs, y, y_new, rtol, tol), hs, rejected)
+        accepted, h_proposed = rk.next_step(rk.error_norm(K, hs, y, y_new, rtol, tol), hs, rejected)
         if not accepted:
             h = h_proposed
             rejected = True
@@ -199,12 +188,12 @@ def advance(kind, t0, t_end, y, mode, h, p, u, rtol, atol):
             slot, t_event = -1, t_new
             for k in range(N_EVENTS):
                 if _crossing(dirs[k], g_a[k], g_b[k]) != 0.0:
-                    for s in range(N_STAGES + 1, N_EXT):
-                        stage_point(K, s, y, hs, ytmp)
-                        _rhs(kind, t + C[s] * hs, ytmp, mode, p, u, t0, dy)
+                    for s in range(rk.N_STAGES + 1, rk.N_EXT):
+                        rk.stage_point(K, s, y, hs, ytmp)
+                        _rhs(kind, t + rk.C[s] * hs, ytmp, mode, p, u, t0, dy)
                         for i in range(n):
                             K[s, i] = dy[i]
-                    dense_from_stages(hs, y, y_new, f_new, K, F)
+                    rk.dense_from_stages(hs, y, y_new, f_new, K, F)
                     slot, t_event = _first_event(
                         kind, t, hs, y, F, mode, p, g_a, dirs, g_b, ytmp, g, dirs_b, rates
                     )
@@ -213,7 +202,7 @@ def advance(kind, t0, t_end, y, mode, h, p, u, rtol, atol):
                 n_events += 1
                 if n_events > MAX_EVENTS_PER_STEP:
                     return h_proposed, mode, impacts, TOO_MANY_EVENTS
-                dense_eval(t, hs, y, F, t_event, ytmp, n)
+                rk.dense_eval(t, hs, y, F, t_event, ytmp, n)
                 for i in range(n):
                     y[i] = ytmp[i]
                 t = t_event

@@ -26,7 +26,8 @@ from fmpy.fmi2 import (
 )
 
 from rubcosim.components.unit import StepError
-from .foreign import NUMERIC_TYPES
+
+from .foreign import signal_names
 
 # A pythonfmu FMU imports `pythonfmu` from its own resources unless the package is already
 # loaded, and that copy has no build binaries: load the installed one first, so that building
@@ -66,14 +67,9 @@ class FmuUnit:
             raise FmuError(f"{self.path} has no co-simulation interface")
         self.name = name or self.md.modelName
         self.variables = {v.name: v for v in self.md.modelVariables}
-        self.inputs = [v.name for v in self.md.modelVariables if v.causality == "input"]
         # what the master reads after every step: the numeric outputs (a String output
         # is neither recorded nor connected, see orchestrator.foreign)
-        self.outputs = [
-            v.name
-            for v in self.md.modelVariables
-            if v.causality == "output" and v.type in NUMERIC_TYPES
-        ]
+        self.inputs, self.outputs = signal_names(self.md)
         self.messages: list[str] = []
         self._groups: dict[tuple[str, ...], dict[str, tuple[list[str], list[int]]]] = {}
         self._lock = threading.Lock()

@@ -36,6 +36,15 @@ KEYS = ("path", "start", "record", "isolate")
 NUMERIC_TYPES = ("Real", "Integer", "Boolean", "Enumeration")
 
 
+def signal_names(md: Any) -> tuple[list[str], list[str]]:
+    """The inputs and the numeric outputs of a model description (what the master reads)."""
+    inputs = [v.name for v in md.modelVariables if v.causality == "input"]
+    outputs = [
+        v.name for v in md.modelVariables if v.causality == "output" and v.type in NUMERIC_TYPES
+    ]
+    return inputs, outputs
+
+
 class ForeignFmuError(ValueError):
     """A ``[fmus.NAME]`` table or the FMU it names is unusable; the message names the key."""
 

@@ -4,7 +4,7 @@
 master cannot tell them apart) and forwards every call through a pipe to a
 spawned process that holds the real ``FmuUnit``.  FMU states stay in the
 worker; the master holds their numbers.  When the worker dies (a segmentation
-fault or ``abort()`` in the FMU's code) the call raises :class:`FmuCrashed`,
+fault or ``abort()`` in the FMU's code) the call raises :class:`FmuCrashError`,
 a :class:`.cosim_result.CosimError` naming the FMU, the call and the time:
 the master ends the run with status failed and keeps what it recorded up to
 the last communication point.  Each call costs a round trip through the pipe
@@ -24,12 +24,12 @@ from fmpy import read_model_description
 from rubcosim.components.unit import StepError
 
 from .cosim_result import CosimError
-from .foreign import NUMERIC_TYPES
+from .foreign import signal_names
 
 JOIN_SECONDS = 5.0
 
 
-class FmuCrashed(CosimError):
+class FmuCrashError(CosimError):
     """The worker process of an isolated FMU died; the message names the FMU and the time."""
 
 
@@ -72,27 +72,19 @@ def _serve(conn: Any, path: str, kwargs: dict[str, Any]) -> None:
 class IsolatedFmu:
     """:class:`.fmu_unit.FmuUnit` in a worker process (same constructor, same methods)."""
 
-    def __init__(
-        self,
-        path: str | Path,
-        name: str | None = None,
-        params: Mapping[str, Any] | None = None,
-        start_time: float = 0.0,
-    ) -> None:
+    def __init__(self, path: str | Path, **options: Any) -> None:
+        """``options``: those of :class:`.fmu_unit.FmuUnit` (``name``, ``params``,
+        ``start_time``), passed to it in the worker."""
         self.path = Path(path)
         self.md = read_model_description(str(self.path), validate=False)
-        self.name = name or self.md.modelName
-        self.inputs = [v.name for v in self.md.modelVariables if v.causality == "input"]
-        self.outputs = [
-            v.name
-            for v in self.md.modelVariables
-            if v.causality == "output" and v.type in NUMERIC_TYPES
-        ]
+        self.name = options.get("name") or self.md.modelName
+        self.inputs, self.outputs = signal_names(self.md)
+        start_time = float(options.get("start_time", 0.0))
         self.time = float(start_time)
         self.messages: list[str] = []
         context = multiprocessing.get_context("spawn")  # no fork of a process with threads
         self._conn, child = context.Pipe()
-        kwargs = {"name": self.name, "params": dict(params or {}), "start_time": start_time}
+        kwargs = {**options, "name": self.name}
         self._process = context.Process(
             target=_serve, args=(child, str(self.path), kwargs), daemon=True
         )
@@ -106,7 +98,7 @@ class IsolatedFmu:
             reply = self._conn.recv()
         except (EOFError, OSError):
             self._process.join(JOIN_SECONDS)
-            raise FmuCrashed(self._death(what)) from None
+            raise FmuCrashError(self._death(what)) from None
         if reply[0] == "ok":
             return reply[1]
         kind, message = reply[1], reply[2]
@@ -129,7 +121,7 @@ class IsolatedFmu:
         try:
             self._conn.send((method, args))
         except (BrokenPipeError, OSError):
-            raise FmuCrashed(self._death(method)) from None
+            raise FmuCrashError(self._death(method)) from None
         return self._receive(method)
 
     # --- the FmuUnit interface -------------------------------------------------------
