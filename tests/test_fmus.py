@@ -376,3 +376,11 @@ def test_a_state_restored_right_after_instantiation_is_where_the_next_step_start
         b.freeInstance()
     a.terminate()
     a.freeInstance()
+
+
+def test_the_readme_lists_every_fmu():
+    from pathlib import Path
+
+    readme = (Path(__file__).resolve().parent.parent / "README.md").read_text()
+    for ident in MODEL_IDENTIFIERS.values():
+        assert f"`{ident}`" in readme, ident
