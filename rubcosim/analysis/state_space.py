@@ -43,13 +43,21 @@ class StateSpace:
         self.scale = smap.scale
         self.grid = grid
         self.axes = list(axes)
+        self._trees: dict[int, tuple[np.ndarray, cKDTree]] = {}  # by id(attractor.points)
+
+    def _tree(self, a: Attractor) -> cKDTree:
+        """The attractor's points' tree (state scales), built once."""
+        key = id(a.points)
+        if key not in self._trees or self._trees[key][0] is not a.points:
+            self._trees[key] = (a.points, cKDTree(a.points / self.scale))
+        return self._trees[key][1]
 
     def _near(self, states: np.ndarray, a: Attractor) -> np.ndarray:
         z = states / self.scale
         hit = np.zeros(states.shape[0], dtype=bool)
         finite = np.all(np.isfinite(z), axis=1)
         if np.any(finite):
-            d, _ = cKDTree(a.points / self.scale).query(z[finite], p=np.inf)
+            d, _ = self._tree(a).query(z[finite], p=np.inf)
             hit[finite] = d <= a.radius
         return hit
 

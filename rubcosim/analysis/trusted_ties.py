@@ -128,14 +128,25 @@ def trusted(
     return out
 
 
+@nb.njit(cache=True)
+def _agreed(near: np.ndarray, fate: np.ndarray, ok: np.ndarray) -> np.ndarray:  # pragma: no cover
+    out = np.empty(near.shape[0], dtype=np.int64)
+    for r in range(near.shape[0]):
+        f = fate[near[r, 0]]
+        for c in range(near.shape[1]):
+            u = near[r, c]
+            if fate[u] != f or not ok[u]:
+                f = -1
+                break
+        out[r] = f
+    return out
+
+
 def agreed_fate(near: np.ndarray, fate: np.ndarray, ok: np.ndarray | None = None) -> np.ndarray:
     """Per row of neighbour indices ``near``: the fate all of them share (and all ``ok``,
     when given), else -1."""
-    f = fate[near]
-    same = np.all(f == f[:, :1], axis=1)
-    if ok is not None:
-        same &= np.all(ok[near], axis=1)
-    return np.where(same, f[:, 0], -1)
+    ok = np.ones(fate.shape[0], dtype=np.bool_) if ok is None else ok
+    return _agreed(np.ascontiguousarray(near), fate, ok)
 
 
 def _decide(space: Any, grid: Grid, tree: cKDTree, y: np.ndarray, fate, ok, known) -> Any:
@@ -180,6 +191,7 @@ def settle_samples(
     mapper = mapper or (lambda y: smap.map(y)[0])
     nxt, near, tree = graph["next"], graph["near"], graph["tree"]
     inside = nxt >= 0
+    near_in = np.ascontiguousarray(near[inside])
     anchor = space.locate(points, known)
     heads = graph["cycles"]
     free_heads = anchor[heads] < 0
@@ -191,7 +203,7 @@ def settle_samples(
         fate = chain_fates(nxt, anchor, SINK)
         fate[fate < 0] = SINK  # a cycle without an anchor cannot occur; never a label
         safe = np.ones(points.shape[0], dtype=bool)
-        safe[inside] = agreed_fate(near[inside], fate) >= 0
+        safe[inside] = agreed_fate(near_in, fate) >= 0
         ok = trusted(nxt, anchor >= 0, safe)
         roots = np.flatnonzero(~ok & ~safe & (anchor < 0))
         if step == 0:
