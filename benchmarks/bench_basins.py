@@ -13,7 +13,7 @@ Run from the repository root::
 
     .venv/bin/python benchmarks/bench_basins.py [--repeats 3] [--quick]
 
-``--quick`` runs the 60 x 60 x 4 grid instead (a smoke run, not the target).
+``--quick`` runs a 20 x 20 x 2 grid instead (a smoke run, not the target).
 Writes ``basins_feng_yang.json`` and ``basins_feng_yang.md`` to ``--out``
 (default ``benchmarks/results``).
 """
@@ -120,12 +120,12 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n", 1)[0])
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--workers", type=int, default=2)
-    ap.add_argument("--quick", action="store_true", help="60 x 60 x 4 (a smoke run)")
+    ap.add_argument("--quick", action="store_true", help="20 x 20 x 2 (a smoke run)")
     ap.add_argument("--out", type=Path, default=DEFAULT_OUT)
     args = ap.parse_args(argv)
     if args.repeats < 1:
         ap.error("--repeats must be >= 1")
-    extra = ["--grid", "60x60", "--samples", "4"] if args.quick else []
+    extra = ["--grid", "20x20", "--samples", "2"] if args.quick else []
     meta = _meta()
     _run(extra, args.workers)  # warm-up: the compiled kernels' cache
     runs = [_run(extra, args.workers) for _ in range(args.repeats)]
@@ -143,7 +143,7 @@ def main(argv: list[str] | None = None) -> int:
     res = {
         "meta": meta,
         "command": "rubcosim basins feng_yang_attractors " + " ".join(extra),
-        "problem": "60 x 60 x 4 (quick)" if args.quick else "200 x 200 cells x 16 samples",
+        "problem": "20 x 20 x 2 (quick)" if args.quick else "200 x 200 cells x 16 samples",
         "workers": args.workers,
         "wall_s": walls,
         "median_s": median,
