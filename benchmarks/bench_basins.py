@@ -82,7 +82,8 @@ def _markdown(res: dict[str, Any]) -> str:
     lines = [
         "# Feng & Yang basins: process wall time and result",
         "",
-        f"`{res['command']}`, {res['problem']}; {len(walls)} runs after a warm-up, "
+        f"`{res['command']}`, {res['problem']}; {len(walls)} runs after {res['warmup']} "
+        "untimed, "
         f"{res['workers']} workers.  {m['date']}, {m['cpu_count']} CPUs (load average "
         f"{m['load_average_at_start']:.1f} at the start: a shared machine), Python "
         f"{m['python']}, numpy {m['numpy']}, scipy {m['scipy']}, numba {m['numba']}, "
@@ -120,14 +121,16 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n", 1)[0])
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--warmup", type=int, default=1, help="untimed runs first (a warm cache)")
     ap.add_argument("--quick", action="store_true", help="20 x 20 x 2 (a smoke run)")
     ap.add_argument("--out", type=Path, default=DEFAULT_OUT)
     args = ap.parse_args(argv)
-    if args.repeats < 1:
-        ap.error("--repeats must be >= 1")
+    if args.repeats < 1 or args.warmup < 0:
+        ap.error("--repeats must be >= 1 and --warmup >= 0")
     extra = ["--grid", "20x20", "--samples", "2"] if args.quick else []
     meta = _meta()
-    _run(extra, args.workers)  # warm-up: the compiled kernels' cache
+    for _ in range(args.warmup):  # the compiled kernels' cache
+        _run(extra, args.workers)
     runs = [_run(extra, args.workers) for _ in range(args.repeats)]
     walls = [w for w, _ in runs]
     report = runs[0][1]
@@ -145,6 +148,7 @@ def main(argv: list[str] | None = None) -> int:
         "command": "rubcosim basins feng_yang_attractors " + " ".join(extra),
         "problem": "20 x 20 x 2 (quick)" if args.quick else "200 x 200 cells x 16 samples",
         "workers": args.workers,
+        "warmup": args.warmup,
         "wall_s": walls,
         "median_s": median,
         "target_s": TARGET_S,

@@ -10,8 +10,13 @@
    Chains end in the sink (the image left the region) or in a cycle.
 3. Each cycle's fate is decided by direct simulation (:mod:`.attractors`):
    the largest-draining cycles are simulated and classified, which finds and
-   verifies the attractors and their neighbourhoods; every other cycle is
-   pursued with the compiled multi-period map until it enters one.
+   verifies the attractors and their neighbourhoods (:mod:`.state_space`);
+   every other cycle is pursued with the compiled multi-period map until it
+   enters one.
+3b. A tie moves the image by up to half a sample spacing, which decides the
+   fate of samples near a basin boundary: ties are used only where the
+   samples around the image share one fate, and every other sample is tracked
+   exactly until its fate is certain (:mod:`.trusted_ties`).
 4. Per cell, the share of its samples going to each attractor and to the sink.
    A cell is in the *basin* of attractor k when k is the only attractor its
    samples reach, a *boundary* cell when they reach two or more (mixed), an
