@@ -119,7 +119,7 @@ def executor(workers: int | None = None, scheduler: str | None = None) -> Iterat
         yield pool
 
 
-SPLIT_MIN = 4000  # rows: fewer are mapped in this process (a task costs more than it saves)
+SPLIT_MIN = 500  # rows: fewer are mapped in this process (a task costs more than it saves)
 
 
 def _images(smap: Any, states: np.ndarray) -> np.ndarray:
