@@ -6,7 +6,7 @@ STAMP := $(VENV)/.installed-stamp
 FLAGSHIP ?= scenarios/jeffcott_rigid_stator.toml
 OUT ?= results/jeffcott_rigid_stator
 
-.PHONY: setup run test lint format bench bench-analysis gallery clean
+.PHONY: setup run test lint format bench bench-analysis bench-basins gallery clean
 
 setup: $(STAMP)
 
@@ -44,6 +44,9 @@ bench: $(STAMP)
 
 bench-analysis: $(STAMP)
 	$(PY) benchmarks/bench_analysis.py --repeats 3
+
+bench-basins: $(STAMP)
+	$(PY) benchmarks/bench_basins.py --repeats 3
 
 gallery: $(STAMP)
 	sh docs/make_gallery.sh

@@ -182,11 +182,11 @@ def sweep(
 
 def basins(
     scenario: ScenarioLike,
-    grid: tuple[int, int] | str,
-    samples: int,
-    region: tuple[float, float, float, float] | str,
+    grid: tuple[int, int] | str | None = None,
+    samples: int | None = None,
+    region: tuple[float, float, float, float] | str | None = None,
     *,
-    seed: int = 0,
+    seed: int | None = None,
     rtol: float | None = None,
     workers: int | None = None,
     scheduler: str | None = None,
@@ -205,20 +205,34 @@ def basins(
     ``"slice"`` (the default with ``slice``), any delay-free scenario: the grid spans
     the two state components ``slice = (name1, name2)`` (default the first two), the
     others keep the scenario's initial values, and every sample is followed in the
-    full state space (:mod:`rubcosim.analysis.slices`).  ``result.info`` holds the
-    wall time (s)."""
+    full state space (:mod:`rubcosim.analysis.slices`).  Each of ``method``, ``grid``,
+    ``samples``, ``region``, ``seed`` and ``slice`` not given here is taken from the
+    scenario's ``[basins]`` table (:mod:`rubcosim.basinsettings`) when it has it;
+    ``grid``, ``samples`` and ``region`` are needed from one or the other.
+    ``result.info`` holds the wall time (s)."""
     import time
 
-    from .analysis.cellmap import BASIN_METHODS, CELL_MAP_RTOL, Grid, cell_mapping
+    from .analysis.cellmap import CELL_MAP_RTOL, Grid, cell_mapping
     from .analysis.errors import AnalysisError
     from .analysis.maps import StroboscopicMap
     from .analysis.pursuit import pursuit_basins
     from .analysis.slices import parse_slice, slice_basins
+    from .basinsettings import BASIN_METHODS
 
-    method = method or ("gcm" if slice is None else "slice")
+    sc = _scenario(scenario)
+    given = {"grid": grid, "samples": samples, "region": region, "seed": seed}
+    given |= {"method": method, "slice": slice}
+    opts = {k: v if v is not None else sc.basins.get(k) for k, v in given.items()}
+    for key in ("grid", "samples", "region"):
+        if opts[key] is None:
+            raise AnalysisError(
+                f"--{key}: not given, and the scenario has no basins.{key} to default to"
+            )
+    grid, samples, region, slice = opts["grid"], opts["samples"], opts["region"], opts["slice"]
+    seed = 0 if opts["seed"] is None else opts["seed"]
+    method = opts["method"] or ("gcm" if slice is None else "slice")
     if method not in BASIN_METHODS:
         raise AnalysisError(f"--method {method!r}: one of {', '.join(BASIN_METHODS)}")
-    sc = _scenario(scenario)
     axes = parse_slice(sc.system, slice) if slice is not None or method == "slice" else (0, 1)
     if method != "slice" and axes != (0, 1):
         raise AnalysisError(

@@ -14,9 +14,9 @@ from rubcosim.orchestrator.settings import BACKENDS
 from rubcosim.reference.simulate import ENGINES
 
 from . import api, cli_lyapunov
-from .analysis.cellmap import BASIN_METHODS
 from .analysis.errors import AnalysisError
 from .analysis.sweep import DIRECTIONS
+from .basinsettings import BASIN_METHODS
 from .scenario import ScenarioError
 from .writing import check_output_dir, write_directory
 
@@ -172,12 +172,14 @@ def _analysis_parsers(sub: Any) -> None:
     )
     bs = sub.add_parser("basins", help="basins of attraction by generalized cell mapping")
     common(bs)
-    bs.add_argument("--grid", required=True, metavar="NXxNV", help="cells in x and x'")
-    bs.add_argument("--samples", type=int, required=True, help="random points per cell")
     bs.add_argument(
-        "--region", required=True, metavar="X0:X1,V0:V1", help="the section's region in (x, x')"
+        "--grid", metavar="NXxNV", help="cells in x and x' (default: the scenario's basins.grid)"
     )
-    bs.add_argument("--seed", type=int, default=0, help="seed of the sample points")
+    bs.add_argument("--samples", type=int, help="random points per cell (basins.samples)")
+    bs.add_argument(
+        "--region", metavar="X0:X1,V0:V1", help="the section's region in (x, x') (basins.region)"
+    )
+    bs.add_argument("--seed", type=int, help="seed of the sample points (basins.seed, else 0)")
     bs.add_argument(
         "--method",
         default=None,
@@ -185,7 +187,8 @@ def _analysis_parsers(sub: Any) -> None:
         "the one-period map; pursuit: every sample followed to a verified attractor, "
         "saddles by Newton (for maps close to the identity, e.g. "
         "scenarios/feng_yang_attractors.toml); slice (default with --slice): every "
-        "sample followed in the full state space, any delay-free system",
+        "sample followed in the full state space, any delay-free system; default: the "
+        "scenario's basins.method",
     )
     bs.add_argument(
         "--slice",
@@ -248,26 +251,35 @@ def cmd_basins(args: argparse.Namespace) -> int:
     from .analysis.slices import parse_slice
 
     scenario = api.load(args.scenario, args.set)
-    Grid.parse(args.grid, args.region)  # bad input is refused before --out is looked at
-    if args.slice is not None:
-        parse_slice(scenario.system, args.slice)
-    if args.method not in (None, *BASIN_METHODS):
-        raise AnalysisError(f"--method {args.method!r}: one of {', '.join(BASIN_METHODS)}")
+    # the flags, else the scenario's [basins] table; bad input is refused before --out
+    keys = ("grid", "samples", "region", "seed", "method", "slice")
+    opts = {k: getattr(args, k) for k in keys}
+    opts = {k: v if v is not None else scenario.basins.get(k) for k, v in opts.items()}
+    for key in ("grid", "samples", "region"):
+        if opts[key] is None:
+            raise AnalysisError(
+                f"--{key}: not given, and the scenario has no basins.{key} to default to"
+            )
+    Grid.parse(opts["grid"], opts["region"])
+    if opts["slice"] is not None:
+        parse_slice(scenario.system, opts["slice"])
+    if opts["method"] not in (None, *BASIN_METHODS):
+        raise AnalysisError(f"--method {opts['method']!r}: one of {', '.join(BASIN_METHODS)}")
     out = check_output_dir(args.out)
     ckpt = checkpoint_dir(out)
     basins = api.basins(
         scenario,
-        args.grid,
-        args.samples,
-        args.region,
-        seed=args.seed,
+        opts["grid"],
+        opts["samples"],
+        opts["region"],
+        seed=opts["seed"],
         rtol=args.rtol,
         workers=args.workers,
         scheduler=args.scheduler,
         checkpoint_dir=ckpt,
         progress=not args.no_progress,
-        method=args.method,
-        slice=args.slice,
+        method=opts["method"],
+        slice=opts["slice"],
     )
     write_directory(out, lambda tmp: write_basins(basins, tmp, scenario.name, basins.info))
     shutil.rmtree(ckpt, ignore_errors=True)

@@ -11,6 +11,8 @@ Layout::
     [cosim]               co-simulation settings (rubcosim.orchestrator.settings.CosimSettings)
     [connections]         "unit.input" = ["unit.output", ...] (summed); replaces the
                           role-based default for that input, [] disconnects it
+    [basins]              method, grid, samples, region, seed, slice: defaults of
+                          `rubcosim basins` (rubcosim.basinsettings)
 
 ``--set role.name=value`` overrides any unit parameter (initial states
 included: ``rotor.x0``...) or setting (``sim.t_end``, ``cosim.algorithm``...).  Every error is a
@@ -35,12 +37,15 @@ from rubcosim.orchestrator.foreign import ForeignFmu, ForeignFmuError, foreign_f
 from rubcosim.orchestrator.settings import CosimSettings, SettingsError, cosim_settings
 from rubcosim.reference.assemble import System, build_system
 
+from .basinsettings import basin_settings
 from .errors import ScenarioError
 from .simsettings import SIM_DEFAULTS, sim_settings
 
 PLOT_KINDS = ("orbit", "timeseries", "poincare")
 SCENARIO_KEYS = ("name", "description")
-TOP_LEVEL = ("scenario", "sim", "units", "fmus", "outputs", "plots", "cosim", "connections")
+TOP_LEVEL = (
+    "scenario", "sim", "units", "fmus", "outputs", "plots", "cosim", "connections", "basins"
+)  # fmt: skip
 
 
 @dataclass
@@ -61,6 +66,8 @@ class Scenario:
     # the parsed scenario table and every override applied to it ("role.name": value)
     data: dict[str, Any] = field(default_factory=dict, repr=False)
     overrides: dict[str, Any] = field(default_factory=dict)
+    # defaults of `rubcosim basins` on this scenario (rubcosim.basinsettings), keys given
+    basins: dict[str, Any] = field(default_factory=dict)
 
     def with_params(self, params: Mapping[str, Any]) -> Scenario:
         """A new validated scenario: this one's table with its overrides and then
@@ -305,6 +312,7 @@ def build_scenario(
         fmus=fmus,
         data=original,
         overrides=applied,
+        basins=basin_settings(_check_table("[basins]", data.get("basins", {}))),
     )
     if cosim.order and sorted(cosim.order) != sorted(scenario.unit_names):
         raise ScenarioError(

@@ -85,3 +85,16 @@ def _shrunk(fn, n):
         return fn(min(first, n), *(min(r, n) if i < 2 else r for i, r in enumerate(rest)))
 
     return run
+
+
+def test_basins_benchmark_times_the_process_and_writes_its_table(tmp_path):
+    import bench_basins
+
+    assert (
+        bench_basins.main(["--quick", "--repeats", "1", "--warmup", "0", "--out", str(tmp_path)])
+        == 0
+    )
+    data = json.loads((tmp_path / "basins_feng_yang_quick.json").read_text())
+    assert len(data["wall_s"]) == 1 and data["wall_s"][0] > 0 and not data["met"]
+    assert data["meta"]["git_commit"] and data["report"]["samples"]["total"] == 20 * 20 * 2
+    assert "| P4 |" in (tmp_path / "basins_feng_yang_quick.md").read_text()

@@ -30,8 +30,10 @@ def test_two_dof_oscillator_slice_accounts_for_every_sample():
 
 def test_slice_agrees_with_pursuit_on_impact_duffing():
     """Two coexisting period-1 orbits (1-1 and 1-0); pursuit ties images to the nearest
-    sample, the slice method follows each sample itself: they agree on the attractor
-    most of a cell's samples reach in >= 95 % of the cells (measured 97 %)."""
+    sample where the samples around the image agree and tracks the others, the slice
+    method follows each sample itself: they agree on the fate of >= 99 % of the samples
+    and on the attractor most of a cell's samples reach in >= 99 % of the cells
+    (measured 100 % for both; 97 % with untested nearest-sample ties)."""
     sc = rc.load("impact_duffing")
     args = ((30, 30), 4, (-3.0, 1.0, -6.0, 6.0))
     pur = rc.basins(sc, *args, workers=1, method="pursuit")
@@ -51,7 +53,9 @@ def test_slice_agrees_with_pursuit_on_impact_duffing():
     for a, k in enumerate([*perm, pur.n_attractors]):
         shares[:, k] += sli.shares[:, a]
     agree = np.mean(np.argmax(shares, axis=1) == np.argmax(pur.shares, axis=1))
-    assert agree >= 0.95, agree
+    assert agree >= 0.99, agree
+    fates = np.array([*perm, pur.n_attractors])[sli.fates.ravel()]
+    assert np.mean(fates == pur.fates.ravel()) >= 0.99
 
 
 def test_rotor_slice_cli_outputs_checkpoint_and_errors(tmp_path, capsys):

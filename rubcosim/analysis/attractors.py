@@ -3,25 +3,20 @@
 An attractor is found by iterating the stroboscopic map from a point for
 ``SETTLE`` periods and classifying the next ``KEEP`` points with
 :func:`.motion.classify` (n-m, or not periodic).  Its *verified
-neighbourhood* is a set of cells from which direct simulation goes to it:
-
-- a periodic attractor (period n): the cells of its n points and their
-  neighbours within ``NEAR_RADIUS`` cells, each kept only when the simulated
-  orbit from the cell's centre converges to the attractor (its points within
-  ``MATCH_TOL`` state scales);
-- a motion that is not periodic (chaotic, or quasi-periodic: its largest
-  Lyapunov exponent over ``CHAOS_KEEP`` periods, ``motion["lyapunov"]`` in 1/s,
-  tells them apart): the cells its orbit visits in ``CHAOS_KEEP`` periods.
+neighbourhood* is a set from which direct simulation goes to it (a ball
+around each of its points, :mod:`.state_space`; a motion that is not periodic
+is followed ``CHAOS_KEEP`` periods for its points, and its largest Lyapunov
+exponent over them, ``motion["lyapunov"]`` in 1/s, tells chaos from
+quasi-periodicity).
 
 A point is *pursued* by mapping it ``PURSUE_STEP`` periods at a time (the
 compiled multi-period map, many points per call) until it enters a verified
 neighbourhood; one that has not after ``PURSUE_MAX`` periods is simulated and
 classified, which finds a new attractor or a known one.
 
-Where a neighbourhood lives is the *space*'s business: :class:`CellSpace`, cells of
-a 2-D section grid (``--method pursuit``), or :class:`.slices.StateSpace`, balls in
-the full state space (``--method slice``); :func:`identify`, :func:`pursue` and
-:func:`settle` work with either.
+Where a neighbourhood lives is the *space*'s business
+(:class:`.state_space.StateSpace`, for ``--method pursuit`` and ``--method slice``):
+:func:`identify`, :func:`pursue` and :func:`settle` take it as an argument.
 """
 
 from __future__ import annotations
@@ -31,7 +26,6 @@ from typing import Any
 
 import numpy as np
 
-from .cellmap import Grid, same_motion
 from .errors import AnalysisError
 from .lyapunov import lyapunov_spectrum
 from .maps import StroboscopicMap
@@ -41,7 +35,6 @@ SETTLE = 600  # periods before classifying: multipliers of modulus 0.91 shrink b
 KEEP = 64  # periods classified
 CLASSIFY_TOL = 1e-5  # state scales: a settled periodic orbit repeats far closer
 MATCH_TOL = 1e-3  # state scales: the same periodic attractor
-NEAR_RADIUS = 1  # cells around a periodic attractor's points tried for its neighbourhood
 CHAOS_KEEP = 2000  # periods of a non-periodic attractor whose cells are its neighbourhood
 PURSUE_STEP = 20  # periods per pursuit call
 PURSUE_MAX = 600  # periods pursued before simulating and classifying
@@ -56,7 +49,7 @@ class Attractor:
     motion: dict[str, Any]
     points: np.ndarray  # points on the attractor (the n points, or CHAOS_KEEP of them)
     cells: np.ndarray  # cell numbers of those points (the sink dropped)
-    near: np.ndarray  # bool per cell: the verified neighbourhood (CellSpace)
+    near: np.ndarray  # bool per cell (unused by the state-space neighbourhoods: all False)
     radius: float = 0.0  # state scales: its verified ball around each point (StateSpace)
 
     @property
@@ -97,84 +90,9 @@ def converges_to(
     return ok
 
 
-def _neighbour_cells(grid: Grid, cells: np.ndarray, radius: int) -> np.ndarray:
-    i, j = cells % grid.nx, cells // grid.nx
-    di, dj = np.meshgrid(np.arange(-radius, radius + 1), np.arange(-radius, radius + 1))
-    ii = (i[:, None] + di.ravel()[None, :]).ravel()
-    jj = (j[:, None] + dj.ravel()[None, :]).ravel()
-    keep = (ii >= 0) & (ii < grid.nx) & (jj >= 0) & (jj < grid.nv)
-    return np.unique(jj[keep] * grid.nx + ii[keep])
-
-
-def new_attractor(
-    smap: StroboscopicMap, grid: Grid, motion: dict[str, Any], orbit: Any
-) -> Attractor:
-    """Build and verify the neighbourhood of a newly found attractor."""
-    near = np.zeros(grid.n_cells, dtype=bool)
-    if motion["periodic"]:
-        pts = np.asarray(motion["poincare_points"])
-        own = grid.cell_of(pts)
-        own = own[own != grid.sink]
-        tried = _neighbour_cells(grid, own, NEAR_RADIUS)
-        good = converges_to(smap, grid.centres(tried), pts, motion["period"])
-        near[tried[good]] = True
-        near[own] = True  # the attractor's own cells (its points lie in them)
-    else:
-        more = smap.orbit(orbit.final_state, keep=CHAOS_KEEP)
-        pts = more.points if more.ok else orbit.points
-        own = np.unique(grid.cell_of(pts))
-        own = own[own != grid.sink]
-        near[own] = True
-        motion["section_points"] = pts[-256:].tolist()
-        motion["cells_visited"] = int(own.size)
-        motion["lyapunov"] = largest_exponent(smap, more if more.ok else orbit)
-    return Attractor(motion, pts, np.unique(own), near)
-
-
-def largest_exponent(smap: StroboscopicMap, orbit: Any) -> float | str:
-    """The largest Lyapunov exponent (1/s) over ``CHAOS_KEEP`` periods from the end of
-    ``orbit`` (an :class:`~.maps.Orbit`), or why it could not be measured."""
-    try:
-        lyap = lyapunov_spectrum(
-            smap.system, CHAOS_KEEP, 0, rtol=smap.rtol, y0=orbit.final_state,
-            mode=orbit.mode, count=1,
-        )  # fmt: skip
-    except AnalysisError as exc:
-        return f"not measured: {exc}"
-    return lyap.largest
-
-
-def match(smap: StroboscopicMap, grid: Grid, motion: dict[str, Any], known: list[Attractor]) -> int:
-    """Index of the known attractor the simulated ``motion`` is on, else -1."""
-    for k, a in enumerate(known):
-        if a.periodic and same_motion(a.motion, motion, smap.scale, MATCH_TOL):
-            return k
-        if not a.periodic and not motion.get("periodic"):
-            cells = grid.cell_of(np.asarray(motion["poincare_points"]))
-            if np.any(a.near[cells[cells != grid.sink]]):
-                return k
-    return -1
-
-
-class CellSpace:
-    """Verified neighbourhoods as sets of cells of a 2-D section ``grid``."""
-
-    def __init__(self, grid: Grid) -> None:
-        self.grid = grid
-
-    def locate(self, states: np.ndarray, known: list[Attractor]) -> np.ndarray:
-        return in_neighbourhood(self.grid, states, known)
-
-    def match(self, smap: StroboscopicMap, motion: dict[str, Any], known: list[Attractor]) -> int:
-        return match(smap, self.grid, motion, known)
-
-    def build(self, smap: StroboscopicMap, motion: dict[str, Any], orbit: Any) -> Attractor:
-        return new_attractor(smap, self.grid, motion, orbit)
-
-
 def identify(smap: StroboscopicMap, space: Any, start: np.ndarray, known: list[Attractor]) -> int:
     """Simulate from ``start``: the index of the attractor it settles on, appending a
-    new verified one (in ``space``, a :class:`CellSpace` or a state space) to ``known``
+    new verified one (in ``space``, a :class:`.state_space.StateSpace`) to ``known``
     when needed; -1 when the run fails."""
     motion, orbit = _motion(smap, start)
     if motion["label"] == "unknown":
@@ -184,18 +102,6 @@ def identify(smap: StroboscopicMap, space: Any, start: np.ndarray, known: list[A
         return k
     known.append(space.build(smap, motion, orbit))
     return len(known) - 1
-
-
-def in_neighbourhood(grid: Grid, states: np.ndarray, known: list[Attractor]) -> np.ndarray:
-    """Per state: the first attractor whose verified neighbourhood holds its cell, else -1."""
-    cells = grid.cell_of(states)
-    out = np.full(states.shape[0], -1, dtype=np.int64)
-    inside = cells != grid.sink
-    for k in range(len(known) - 1, -1, -1):
-        hit = np.zeros_like(inside)
-        hit[inside] = known[k].near[cells[inside]]
-        out[hit] = k
-    return out
 
 
 def pursue(
@@ -255,3 +161,16 @@ def settle(
         "pursuit_periods": int(mapped),
     }
     return fate, known, stats
+
+
+def largest_exponent(smap: StroboscopicMap, orbit: Any) -> float | str:
+    """The largest Lyapunov exponent (1/s) over ``CHAOS_KEEP`` periods from the end of
+    ``orbit`` (an :class:`~.maps.Orbit`), or why it could not be measured."""
+    try:
+        lyap = lyapunov_spectrum(
+            smap.system, CHAOS_KEEP, 0, rtol=smap.rtol, y0=orbit.final_state,
+            mode=orbit.mode, count=1,
+        )  # fmt: skip
+    except AnalysisError as exc:
+        return f"not measured: {exc}"
+    return lyap.largest

@@ -52,7 +52,6 @@ DEFAULT_CHUNK = 2000  # cells per task
 CELL_MAP_RTOL = 1e-7  # the map's tolerance: cells are far coarser than this
 LABEL_BOUNDARY = -2
 LABEL_ESCAPE = -1
-BASIN_METHODS = ("gcm", "pursuit", "slice")  # generalized cell mapping; .pursuit; .slices
 MERGE_TOL = 1e-3  # state scales: simulated motions this close are the same attractor
 
 

@@ -119,6 +119,32 @@ def executor(workers: int | None = None, scheduler: str | None = None) -> Iterat
         yield pool
 
 
+SPLIT_MIN = 500  # rows: fewer are mapped in this process (a task costs more than it saves)
+
+
+def _images(smap: Any, states: np.ndarray) -> np.ndarray:
+    return smap.map(states)[0]
+
+
+@contextlib.contextmanager
+def parallel_images(
+    smap: Any, workers: int | None = None, scheduler: str | None = None
+) -> Iterator[Callable[[np.ndarray], np.ndarray]]:
+    """A function giving the one-period images of many states (rows; NaN where the run
+    failed) of ``smap`` (a :class:`.maps.StroboscopicMap`), the rows split over the
+    executor's workers; for analyses that map many small batches in turn."""
+    n = 1 if scheduler is None and workers == 1 else max(2, workers or default_workers())
+    with executor(workers, scheduler) as pool:
+
+        def images(states: np.ndarray) -> np.ndarray:
+            if n == 1 or states.shape[0] < SPLIT_MIN:
+                return _images(smap, states)
+            parts = [pool.submit(_images, smap, p) for p in np.array_split(states, n)]
+            return np.concatenate([f.result() for f in parts])
+
+        yield images
+
+
 def run_tasks(
     fn: Callable[..., dict[str, np.ndarray]],
     tasks: list[Task],

@@ -10,8 +10,13 @@
    Chains end in the sink (the image left the region) or in a cycle.
 3. Each cycle's fate is decided by direct simulation (:mod:`.attractors`):
    the largest-draining cycles are simulated and classified, which finds and
-   verifies the attractors and their neighbourhoods; every other cycle is
-   pursued with the compiled multi-period map until it enters one.
+   verifies the attractors and their neighbourhoods (:mod:`.state_space`);
+   every other cycle is pursued with the compiled multi-period map until it
+   enters one.
+3b. A tie moves the image by up to half a sample spacing, which decides the
+   fate of samples near a basin boundary: ties are used only where the
+   samples around the image share one fate, and every other sample is tracked
+   exactly until its fate is certain (:mod:`.trusted_ties`).
 4. Per cell, the share of its samples going to each attractor and to the sink.
    A cell is in the *basin* of attractor k when k is the only attractor its
    samples reach, a *boundary* cell when they reach two or more (mixed), an
@@ -31,7 +36,7 @@ from typing import Any
 
 import numpy as np
 
-from .attractors import Attractor, CellSpace, settle
+from .attractors import Attractor, settle
 from .cellmap import (
     DEFAULT_CHUNK,
     LABEL_BOUNDARY,
@@ -42,9 +47,11 @@ from .cellmap import (
     sample_cells,
 )
 from .maps import StroboscopicMap
-from .parallel import map_in_chunks
+from .parallel import map_in_chunks, parallel_images
 from .saddles import fixed_points
 from .sample_graph import map_samples, sample_graph
+from .state_space import StateSpace
+from .trusted_ties import K_NEAR, settle_samples
 
 
 def _map_all(
@@ -133,9 +140,10 @@ def pursuit_basins(
         smap, grid, samples, seed, workers, scheduler, checkpoint_dir, chunk, progress
     )
     clock["mapped"] = time.perf_counter()
-    g = sample_graph(grid, points, images)
+    g = sample_graph(grid, points, images, k=K_NEAR)
     clock["graph"] = time.perf_counter()
-    fate, known, found = settle(smap, CellSpace(grid), points[g["cycles"]])
+    space = StateSpace(smap, grid, (0, 1))
+    heads_fate, known, found = settle(smap, space, points[g["cycles"]])
     stats = {
         "cycles": found["starts"],
         "cycles_simulated": found["simulated"],
@@ -143,15 +151,14 @@ def pursuit_basins(
         "pursuit_periods": found["pursuit_periods"],
     }
     clock["attractors"] = time.perf_counter()
+    # each sample's fate through trusted ties only, the others tracked exactly
+    with parallel_images(smap, workers, scheduler) as mapper:
+        label, tied = settle_samples(
+            smap, space, grid, points, images, g, heads_fate, known, mapper
+        )
+    stats["ties"] = tied
     n_att = len(known)
-    # each sample's fate: its cycle's attractor; the sink (column n_att) for chains
-    # leaving the region and runs that failed
-    order = np.argsort(g["cycles"])
-    heads, head_fate = g["cycles"][order], fate[order]
-    label = np.full(points.shape[0], n_att, dtype=np.int64)
-    on_cycle = g["terminal"] >= 0
-    f = head_fate[np.searchsorted(heads, g["terminal"][on_cycle])]
-    label[on_cycle] = np.where(f >= 0, f, n_att)
+    clock["ties"] = time.perf_counter()
     t = tally(grid, samples, label, known)
     label, labels, attractor_of = t["label"], t["labels"], t["attractor_of"]
     where = (labels == LABEL_BOUNDARY) | (attractor_of >= 0)
@@ -170,8 +177,8 @@ def pursuit_basins(
     stats["seconds"] = {
         k: round(clock[k] - clock[p], 3)
         for p, k in zip(
-            ["start", "mapped", "graph", "attractors"],
-            ["mapped", "graph", "attractors", "saddles"],
+            ["start", "mapped", "graph", "attractors", "ties"],
+            ["mapped", "graph", "attractors", "ties", "saddles"],
             strict=True,
         )
     }

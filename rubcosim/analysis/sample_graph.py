@@ -41,16 +41,22 @@ def map_samples(
     return {"image": images, "impacts": impacts.astype(np.int16)}
 
 
-def successors(grid: Grid, points: np.ndarray, images: np.ndarray) -> np.ndarray:
+def successors(
+    grid: Grid, points: np.ndarray, images: np.ndarray, k: int = 1
+) -> tuple[np.ndarray, np.ndarray, cKDTree]:
     """Index of the sample point nearest to each image (distances in cell widths, so
-    both axes weigh alike); :data:`SINK` for images outside the region or not finite."""
+    both axes weigh alike), :data:`SINK` for images outside the region or not finite;
+    the ``k`` nearest (rows of indices, nearest first; 0 for images outside); the
+    sample points' tree (in cell widths)."""
     cell_size = np.array([grid.dx, grid.dv])
     inside = grid.cell_of(images) != grid.sink
     nxt = np.full(points.shape[0], SINK, dtype=np.int64)
+    near = np.zeros((points.shape[0], k), dtype=np.int64)
     tree = cKDTree(points / cell_size)
-    _, idx = tree.query(images[inside] / cell_size, workers=-1)
-    nxt[inside] = idx
-    return nxt
+    _, idx = tree.query(images[inside] / cell_size, k=k, workers=-1)
+    near[inside] = np.asarray(idx).reshape(-1, k)
+    nxt[inside] = near[inside, 0]
+    return nxt, near, tree
 
 
 @nb.njit(cache=True)
@@ -94,11 +100,19 @@ def cycle_members(nxt: np.ndarray, start: int) -> np.ndarray:
     return np.array(out, dtype=np.int64)
 
 
-def sample_graph(grid: Grid, points: np.ndarray, images: np.ndarray) -> dict[str, Any]:
-    """Successors, each sample's terminal cycle node (-1: the sink) and the cycles
-    (their nodes, largest drainage first)."""
-    nxt = successors(grid, points, images)
+def sample_graph(grid: Grid, points: np.ndarray, images: np.ndarray, k: int = 1) -> dict[str, Any]:
+    """Successors, the ``k`` samples nearest to each image (``near``), the points'
+    ``tree``, each sample's terminal cycle node (-1: the sink) and the cycles (their
+    nodes, largest drainage first)."""
+    nxt, near, tree = successors(grid, points, images, k)
     term = terminal_cycles(nxt)
     heads, drained = np.unique(term[term >= 0], return_counts=True)
     order = np.argsort(-drained, kind="stable")
-    return {"next": nxt, "terminal": term, "cycles": heads[order], "drained": drained[order]}
+    return {
+        "next": nxt,
+        "near": near,
+        "tree": tree,
+        "terminal": term,
+        "cycles": heads[order],
+        "drained": drained[order],
+    }

@@ -13,7 +13,7 @@ x2, v2 with x1, v1 at rest).  A cell-to-cell map is not closed on such a slice
    as the pursuit method settles its cycles): in order, the first end state
    outside every verified neighbourhood is simulated and classified n-m (or not
    periodic), the rest are pursued ``PURSUE_STEP`` periods at a time until they
-   enter one.  Neighbourhoods live in the full state space (:class:`StateSpace`):
+   enter one.  Neighbourhoods live in the full state space (:class:`.state_space.StateSpace`):
    a ball of verified radius (state scales, max norm) around each point of a
    periodic attractor, or around the points of a non-periodic one's orbit;
 3. a sample whose end state is beyond ``ESCAPE_SCALES`` state scales, whose run
@@ -33,26 +33,17 @@ from collections.abc import Mapping, Sequence
 from typing import Any
 
 import numpy as np
-from scipy.spatial import cKDTree
 
-from .attractors import (
-    CHAOS_KEEP,
-    MATCH_TOL,
-    Attractor,
-    converges_to,
-    largest_exponent,
-    settle,
-)
-from .cellmap import DEFAULT_CHUNK, Basins, Grid, check_sampling, same_motion, sample_cells
+from .attractors import settle
+from .cellmap import DEFAULT_CHUNK, Basins, Grid, check_sampling, sample_cells
 from .errors import AnalysisError
 from .maps import StroboscopicMap, admissible
 from .parallel import map_in_chunks
 from .pursuit import tally
+from .state_space import StateSpace
 
 FOLLOW = 100  # periods every sample is mapped before its end state is settled
 ESCAPE_SCALES = 1e3  # state scales: a state farther out on any component has escaped
-RADII = (0.05, 0.01, 2e-3)  # state scales: ball radii tried around a periodic attractor
-CHAOS_SPACING = 3.0  # a non-periodic attractor's ball: this many median point spacings
 
 
 def parse_slice(system: Any, names: str | Sequence[str] | None) -> tuple[int, int]:
@@ -107,69 +98,6 @@ def follow_samples(
         far = np.any(np.abs(ends) > ESCAPE_SCALES * smap.scale, axis=1)
     ends[(status != 0) | ~ok | far] = np.nan
     return {"end": ends}
-
-
-class StateSpace:
-    """Verified neighbourhoods in the full state space: a ball of radius
-    ``Attractor.radius`` (state scales, max norm) around each of its points."""
-
-    def __init__(self, smap: StroboscopicMap, grid: Grid, axes: tuple[int, int]) -> None:
-        self.scale = smap.scale
-        self.grid = grid
-        self.axes = list(axes)
-
-    def _near(self, states: np.ndarray, a: Attractor) -> np.ndarray:
-        z = states / self.scale
-        hit = np.zeros(states.shape[0], dtype=bool)
-        finite = np.all(np.isfinite(z), axis=1)
-        if np.any(finite):
-            d, _ = cKDTree(a.points / self.scale).query(z[finite], p=np.inf)
-            hit[finite] = d <= a.radius
-        return hit
-
-    def locate(self, states: np.ndarray, known: list[Attractor]) -> np.ndarray:
-        """Per state: the first attractor whose ball holds it, else -1."""
-        out = np.full(states.shape[0], -1, dtype=np.int64)
-        for k in range(len(known) - 1, -1, -1):
-            out[self._near(states, known[k])] = k
-        return out
-
-    def match(self, smap: StroboscopicMap, motion: dict[str, Any], known: list[Attractor]) -> int:
-        """Index of the known attractor the simulated ``motion`` is on, else -1."""
-        pts = np.asarray(motion["poincare_points"])
-        for k, a in enumerate(known):
-            if a.periodic and same_motion(a.motion, motion, smap.scale, MATCH_TOL):
-                return k
-            if not a.periodic and not motion.get("periodic") and np.any(self._near(pts, a)):
-                return k
-        return -1
-
-    def build(self, smap: StroboscopicMap, motion: dict[str, Any], orbit: Any) -> Attractor:
-        """A new attractor and its verified radius: for a periodic one the largest of
-        ``RADII`` whose test points (each point +- the radius along every state axis)
-        all converge to it, else ``MATCH_TOL``; for a non-periodic one ``CHAOS_SPACING``
-        median spacings of its ``CHAOS_KEEP`` orbit points."""
-        if motion["periodic"]:
-            pts = np.asarray(motion["poincare_points"])
-            radius = MATCH_TOL
-            steps = np.vstack((np.diag(self.scale), -np.diag(self.scale)))
-            for r in RADII:
-                tests = (pts[:, None, :] + r * steps[None, :, :]).reshape(-1, pts.shape[1])
-                if np.all(converges_to(smap, tests, pts, motion["period"])):
-                    radius = r
-                    break
-        else:
-            more = smap.orbit(orbit.final_state, keep=CHAOS_KEEP)
-            pts = more.points if more.ok else orbit.points
-            d, _ = cKDTree(pts / self.scale).query(pts / self.scale, k=2, p=np.inf)
-            radius = CHAOS_SPACING * float(np.median(d[:, 1]))
-            motion["section_points"] = pts[-256:].tolist()
-            motion["lyapunov"] = largest_exponent(smap, more if more.ok else orbit)
-        motion["slice_points"] = np.asarray(motion["poincare_points"])[:, self.axes].tolist()
-        cells = np.unique(self.grid.cell_of(pts[:, self.axes]))
-        cells = cells[cells != self.grid.sink]
-        near = np.zeros(self.grid.n_cells, dtype=bool)
-        return Attractor(motion, pts, cells, near, radius)
 
 
 def slice_basins(

@@ -1,0 +1,107 @@
+"""Verified attractor neighbourhoods as balls in the full state space.
+
+Used by the slice method (every sample followed in the full state) and by the
+pursuit method on a 2-D section: a cell-sized neighbourhood, verified from its
+centre only, can straddle a basin boundary on a coarse grid (Feng & Yang's
+1-1 orbit lies within a few cells of the boundary of the 1-0 orbit P3's basin),
+so its size is set in state scales, not cells, and tested in more directions.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from .attractors import CHAOS_KEEP, MATCH_TOL, Attractor, converges_to, largest_exponent
+from .cellmap import Grid, same_motion
+from .maps import StroboscopicMap
+
+RADII = (0.05, 0.01, 2e-3)  # state scales: ball radii tried around a periodic attractor
+CHAOS_SPACING = 3.0  # a non-periodic attractor's ball: this many median point spacings
+
+
+def test_steps(scale: np.ndarray, axes: list[int]) -> np.ndarray:
+    """Offsets of unit max-norm (in state scales, state units) at which a ball's radius
+    is tested: +- every state axis, and the four diagonals of the plane ``axes``."""
+    n = scale.size
+    steps = [np.diag(scale), -np.diag(scale)]
+    a, b = axes
+    for sa, sb in ((1, 1), (1, -1), (-1, 1), (-1, -1)):
+        d = np.zeros(n)
+        d[a], d[b] = sa * scale[a], sb * scale[b]
+        steps.append(d[None, :])
+    return np.vstack(steps)
+
+
+class StateSpace:
+    """Verified neighbourhoods in the full state space: a ball of radius
+    ``Attractor.radius`` (state scales, max norm) around each of its points."""
+
+    def __init__(self, smap: StroboscopicMap, grid: Grid, axes: tuple[int, int]) -> None:
+        self.scale = smap.scale
+        self.grid = grid
+        self.axes = list(axes)
+        self._trees: dict[int, tuple[np.ndarray, cKDTree]] = {}  # by id(attractor.points)
+
+    def _tree(self, a: Attractor) -> cKDTree:
+        """The attractor's points' tree (state scales), built once."""
+        key = id(a.points)
+        if key not in self._trees or self._trees[key][0] is not a.points:
+            self._trees[key] = (a.points, cKDTree(a.points / self.scale))
+        return self._trees[key][1]
+
+    def _near(self, states: np.ndarray, a: Attractor) -> np.ndarray:
+        z = states / self.scale
+        hit = np.zeros(states.shape[0], dtype=bool)
+        finite = np.all(np.isfinite(z), axis=1)
+        if np.any(finite):
+            d, _ = self._tree(a).query(z[finite], p=np.inf)
+            hit[finite] = d <= a.radius
+        return hit
+
+    def locate(self, states: np.ndarray, known: list[Attractor]) -> np.ndarray:
+        """Per state: the first attractor whose ball holds it, else -1."""
+        out = np.full(states.shape[0], -1, dtype=np.int64)
+        for k in range(len(known) - 1, -1, -1):
+            out[self._near(states, known[k])] = k
+        return out
+
+    def match(self, smap: StroboscopicMap, motion: dict[str, Any], known: list[Attractor]) -> int:
+        """Index of the known attractor the simulated ``motion`` is on, else -1."""
+        pts = np.asarray(motion["poincare_points"])
+        for k, a in enumerate(known):
+            if a.periodic and same_motion(a.motion, motion, smap.scale, MATCH_TOL):
+                return k
+            if not a.periodic and not motion.get("periodic") and np.any(self._near(pts, a)):
+                return k
+        return -1
+
+    def build(self, smap: StroboscopicMap, motion: dict[str, Any], orbit: Any) -> Attractor:
+        """A new attractor and its verified radius: for a periodic one the largest of
+        ``RADII`` whose test points (each point +- the radius along every state axis,
+        and along the four diagonals of the grid's plane) all converge to it, else
+        ``MATCH_TOL``; for a non-periodic one ``CHAOS_SPACING``
+        median spacings of its ``CHAOS_KEEP`` orbit points."""
+        if motion["periodic"]:
+            pts = np.asarray(motion["poincare_points"])
+            radius = MATCH_TOL
+            steps = test_steps(self.scale, self.axes)
+            for r in RADII:
+                tests = (pts[:, None, :] + r * steps[None, :, :]).reshape(-1, pts.shape[1])
+                if np.all(converges_to(smap, tests, pts, motion["period"])):
+                    radius = r
+                    break
+        else:
+            more = smap.orbit(orbit.final_state, keep=CHAOS_KEEP)
+            pts = more.points if more.ok else orbit.points
+            d, _ = cKDTree(pts / self.scale).query(pts / self.scale, k=2, p=np.inf)
+            radius = CHAOS_SPACING * float(np.median(d[:, 1]))
+            motion["section_points"] = pts[-256:].tolist()
+            motion["lyapunov"] = largest_exponent(smap, more if more.ok else orbit)
+        motion["slice_points"] = np.asarray(motion["poincare_points"])[:, self.axes].tolist()
+        cells = np.unique(self.grid.cell_of(pts[:, self.axes]))
+        cells = cells[cells != self.grid.sink]
+        near = np.zeros(self.grid.n_cells, dtype=bool)
+        return Attractor(motion, pts, cells, near, radius)

@@ -1,0 +1,228 @@
+"""Which ties of the sample graph can be trusted, and the exact tracking of the others.
+
+The sample graph (:mod:`.sample_graph`) replaces each sample's one-period
+image ``P(s)`` by the nearest sample ``s'``, an error of up to about half a
+sample spacing per period.  Far from a basin boundary that error is harmless
+(``P(s)`` and ``s'`` go to the same attractor); within a sample spacing of a
+boundary it decides the fate, and where the basins are thin interleaved bands
+(Feng & Yang's case) a chain of ties can cross a band and carry a sample to
+the wrong attractor.  So a tie is used only where the samples show that it
+cannot change the fate:
+
+1. *anchors* are the samples whose fate is known without ties: those inside a
+   verified attractor neighbourhood (direct simulation from the cells), and
+   the graph's cycle heads (each pursued by direct simulation, :func:`.attractors.settle`);
+   a sample whose image leaves the region goes to the sink (its image is exact);
+2. every other sample takes, provisionally, the fate of the first anchor down
+   its chain of ties;
+3. a tie ``s -> s'`` is *safe* when the ``K_NEAR`` samples nearest to the image
+   ``P(s)`` (a ball several times the tie's own error) all have one fate: the
+   image then lies inside one basin at the sample resolution;
+4. a sample is *trusted* when it is an anchor, or its tie is safe and its
+   successor is trusted (every tie down its chain is safe);
+5. every sample that is not trusted is *tracked*: its exact image is mapped one
+   period at a time (the compiled map, all of them per call) until it leaves the
+   region (the sink), enters a verified neighbourhood, or lands where its
+   ``K_NEAR`` nearest samples are all trusted and share one fate; those still
+   undecided after ``TRACK_MAX`` periods are pursued to a verified neighbourhood
+   (:func:`.attractors.pursue`).
+
+What remains is the sampling's own resolution: a band thinner than the sample
+spacing that no sample falls in is invisible to this test (and to any method
+with these samples).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numba as nb
+import numpy as np
+from scipy.spatial import cKDTree
+
+from .attractors import Attractor, pursue
+from .cellmap import Grid
+from .maps import StroboscopicMap
+
+K_NEAR = 8  # samples nearest to an image that must share one fate (16 per cell: ~0.4 cell)
+TRACK_MAX = 150  # periods a sample that is not trusted is followed exactly
+SINK = 1 << 30  # the sink's fate while attractors may still be added (len(known) at the end)
+
+
+@nb.njit(cache=True)
+def chain_fates(nxt: np.ndarray, anchor: np.ndarray, sink: int) -> np.ndarray:  # pragma: no cover
+    """Per node of the functional graph ``nxt`` (successor, < 0: the sink): the fate of
+    the first anchor down its chain (``anchor[u] >= 0`` for an anchor, else -1), ``sink``
+    when the chain leaves the region first, -1 on a cycle without an anchor."""
+    n = nxt.shape[0]
+    out = np.full(n, -2, dtype=np.int64)  # -2 new, -3 on the current walk
+    walk = np.empty(n, dtype=np.int64)
+    for s in range(n):
+        if out[s] != -2:
+            continue
+        top = 0
+        u = s
+        f = -1
+        while True:
+            if u < 0:
+                f = sink
+                break
+            if out[u] == -3:  # a cycle without an anchor
+                f = -1
+                break
+            if out[u] != -2:
+                f = out[u]
+                break
+            if anchor[u] >= 0:
+                f = anchor[u]
+                out[u] = f
+                break
+            out[u] = -3
+            walk[top] = u
+            top += 1
+            u = nxt[u]
+        for k in range(top):
+            out[walk[k]] = f
+    return out
+
+
+@nb.njit(cache=True)
+def trusted(
+    nxt: np.ndarray, anchored: np.ndarray, safe: np.ndarray
+) -> np.ndarray:  # pragma: no cover
+    """Per node: an anchor, or a safe tie to a trusted successor (the sink counts as
+    trusted: an image outside the region is exact); a cycle without an anchor is not."""
+    n = nxt.shape[0]
+    state = np.zeros(n, dtype=np.int8)  # 0 new, 1 on the current walk, 2 trusted, 3 not
+    walk = np.empty(n, dtype=np.int64)
+    for s in range(n):
+        if state[s] != 0:
+            continue
+        top = 0
+        u = s
+        ok = False
+        while True:
+            if u < 0:
+                ok = True
+                break
+            if state[u] == 1:
+                ok = False
+                break
+            if state[u] >= 2:
+                ok = state[u] == 2
+                break
+            if anchored[u]:
+                state[u] = 2
+                ok = True
+                break
+            state[u] = 1
+            walk[top] = u
+            top += 1
+            u = nxt[u]
+        for k in range(top - 1, -1, -1):
+            ok = ok and safe[walk[k]]
+            state[walk[k]] = 2 if ok else 3
+    out = np.empty(n, dtype=np.bool_)
+    for u in range(n):
+        out[u] = state[u] == 2
+    return out
+
+
+@nb.njit(cache=True)
+def _agreed(near: np.ndarray, fate: np.ndarray, ok: np.ndarray) -> np.ndarray:  # pragma: no cover
+    out = np.empty(near.shape[0], dtype=np.int64)
+    for r in range(near.shape[0]):
+        f = fate[near[r, 0]]
+        for c in range(near.shape[1]):
+            u = near[r, c]
+            if fate[u] != f or not ok[u]:
+                f = -1
+                break
+        out[r] = f
+    return out
+
+
+def agreed_fate(near: np.ndarray, fate: np.ndarray, ok: np.ndarray | None = None) -> np.ndarray:
+    """Per row of neighbour indices ``near``: the fate all of them share (and all ``ok``,
+    when given), else -1."""
+    ok = np.ones(fate.shape[0], dtype=np.bool_) if ok is None else ok
+    return _agreed(np.ascontiguousarray(near), fate, ok)
+
+
+def _decide(space: Any, grid: Grid, tree: cKDTree, y: np.ndarray, fate, ok, known) -> Any:
+    """Per exact state ``y``: :data:`SINK` outside the region, the attractor whose
+    verified neighbourhood holds it, or the fate its ``K_NEAR`` nearest samples (their
+    ``fate``, all trusted: ``ok``) share; else -1."""
+    decided = np.full(y.shape[0], -1, dtype=np.int64)
+    outside = grid.cell_of(y) == grid.sink
+    decided[outside] = SINK
+    inside = np.flatnonzero(~outside)
+    hood = space.locate(y[inside], known)
+    decided[inside] = hood
+    free = inside[hood < 0]
+    if free.size:
+        _, near = tree.query(y[free] / np.array([grid.dx, grid.dv]), k=K_NEAR, workers=-1)
+        decided[free] = agreed_fate(near, fate, ok)
+    return decided
+
+
+def settle_samples(
+    smap: StroboscopicMap,
+    space: Any,
+    grid: Grid,
+    points: np.ndarray,
+    images: np.ndarray,
+    graph: dict[str, Any],
+    heads_fate: np.ndarray,
+    known: list[Attractor],
+    mapper: Any = None,
+) -> tuple[np.ndarray, dict[str, Any]]:
+    """Every sample's fate (attractor index, ``len(known)`` for the sink) from the
+    sample graph ``graph`` (:func:`.sample_graph.sample_graph`, with its ``near``
+    neighbours and ``tree``) and its cycle heads' fates ``heads_fate`` (-1: failed),
+    using only trusted ties and tracking the other samples (see the module doc);
+    ``space`` holds the verified neighbourhoods (:class:`.state_space.StateSpace`).
+    ``mapper(states)``: the one-period images of many states (default ``smap.map``'s).
+
+    Tracking goes by rounds: each round, trust is worked out again with the samples
+    decided so far as anchors, and only the samples whose own tie is unsafe are
+    mapped one more period; a sample that only inherits distrust from one of them
+    becomes trusted as soon as that one is decided, without a map of its own."""
+    mapper = mapper or (lambda y: smap.map(y)[0])
+    nxt, near, tree = graph["next"], graph["near"], graph["tree"]
+    inside = nxt >= 0
+    near_in = np.ascontiguousarray(near[inside])
+    anchor = space.locate(points, known)
+    heads = graph["cycles"]
+    free_heads = anchor[heads] < 0
+    anchor[heads[free_heads]] = np.where(heads_fate >= 0, heads_fate, SINK)[free_heads]
+    y = images.copy()  # the exact state of every sample tracked so far
+    done = np.zeros(points.shape[0], dtype=np.int64)  # periods each sample was tracked
+    stats = {"anchors": int(np.sum(anchor >= 0)), "tracked_periods": 0}
+    for step in range(TRACK_MAX + 1):
+        fate = chain_fates(nxt, anchor, SINK)
+        fate[fate < 0] = SINK  # a cycle without an anchor cannot occur; never a label
+        safe = np.ones(points.shape[0], dtype=bool)
+        safe[inside] = agreed_fate(near_in, fate) >= 0
+        ok = trusted(nxt, anchor >= 0, safe)
+        roots = np.flatnonzero(~ok & ~safe & (anchor < 0))
+        if step == 0:
+            stats |= {"unsafe_ties": int(np.sum(~safe)), "untrusted": int(np.sum(~ok))}
+        if roots.size == 0:
+            break
+        if step:
+            y[roots] = mapper(y[roots])
+            done[roots] += 1
+            stats["tracked_periods"] += int(roots.size)
+        decided = _decide(space, grid, tree, y[roots], fate, ok, known)
+        anchor[roots[decided >= 0]] = decided[decided >= 0]
+    left = np.flatnonzero(~ok & ~safe & (anchor < 0))
+    if left.size:  # still undecided after TRACK_MAX periods: pursued, then classified
+        pursued, more = pursue(smap, space, y[left], known)
+        anchor[left] = np.where(pursued >= 0, pursued, SINK)
+        stats["tracked_periods"] += int(more)
+        fate = chain_fates(nxt, anchor, SINK)
+        fate[fate < 0] = SINK
+    stats |= {"tracked": int(np.sum(done > 0)), "tracked_then_pursued": int(left.size)}
+    fate[fate == SINK] = len(known)  # pursuit may have found new attractors
+    return fate, stats
