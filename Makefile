@@ -6,7 +6,7 @@ STAMP := $(VENV)/.installed-stamp
 FLAGSHIP ?= scenarios/jeffcott_rigid_stator.toml
 OUT ?= results/jeffcott_rigid_stator
 
-.PHONY: setup run test lint format bench bench-analysis bench-basins gallery clean
+.PHONY: setup run test lint format bench bench-stale bench-engines bench-analysis bench-basins gallery clean
 
 setup: $(STAMP)
 
@@ -39,7 +39,17 @@ format: $(STAMP)
 test: lint
 	$(PY) -m pytest -n 2 --durations=15
 
+# every benchmark the documents quote (benchmarks/catalog.py), then their tables copied
+# into README.md and BENCHMARKS.md; `make bench-stale` re-runs only the stale ones
 bench: $(STAMP)
+	$(PY) benchmarks/catalog.py run
+	$(PY) benchmarks/readme_tables.py
+
+bench-stale: $(STAMP)
+	$(PY) benchmarks/catalog.py run --stale
+	$(PY) benchmarks/readme_tables.py
+
+bench-engines: $(STAMP)
 	$(PY) benchmarks/bench_engines.py --periods 200
 
 bench-analysis: $(STAMP)

@@ -27,6 +27,8 @@ import time
 from pathlib import Path
 from typing import Any
 
+from stamp import stamp, stamp_line
+
 from rubcosim.analysis.cellmap import Grid, cell_mapping
 from rubcosim.analysis.maps import StroboscopicMap
 from rubcosim.analysis.sweep import ParamRange, sweep
@@ -107,9 +109,10 @@ def main(argv: list[str] | None = None) -> int:
             "detail": sweeps[0],
         },
     }
+    meta = stamp(repeats=args.repeats, workers=args.workers, quick=args.quick)
     args.out.mkdir(parents=True, exist_ok=True)
     (args.out / "analysis.json").write_text(
-        json.dumps({"quick": args.quick, "workers": args.workers, **rows}, indent=1)
+        json.dumps({"meta": meta, "quick": args.quick, "workers": args.workers, **rows}, indent=1)
     )
     lines = ["| study | problem | median wall | runs | target | met |", "|---|---|---|---|---|---|"]
     for name, r in rows.items():
@@ -119,7 +122,14 @@ def main(argv: list[str] | None = None) -> int:
             f"| {name} | {r['problem']} | {r['median_s']:.1f} s | {runs} s "
             f"| {r['target_s']:.0f} s | {met} |"
         )
-    md = "\n".join(lines)
+    md = "\n".join(
+        [
+            *lines,
+            "",
+            f"Medians of {args.repeats} runs after a warm-up, "
+            f"{args.workers} worker processes. " + stamp_line(meta),
+        ]
+    )
     (args.out / "analysis.md").write_text(md + "\n")
     print(md)
     return 0

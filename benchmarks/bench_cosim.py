@@ -39,12 +39,8 @@ from __future__ import annotations
 
 import argparse
 import contextlib
-import datetime
 import json
-import os
-import platform
 import statistics
-import sys
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -52,6 +48,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from stamp import git_commit, stamp, stamp_line
 
 from rubcosim.orchestrator.assembly import run_cosim
 from rubcosim.runner import run_scenario
@@ -188,6 +185,8 @@ def bench_case(case: str, args: argparse.Namespace, out: dict[str, Any]) -> dict
             if point.get("wall_s", 0.0) > args.budget:
                 break
         out["methods"][method.name] = points
+        # with --merge, methods may come from different commits: each says its own
+        out.setdefault("measured_at", {})[method.name] = {"git_commit": git_commit()}
     return out
 
 
@@ -285,22 +284,16 @@ def main(argv: list[str] | None = None) -> int:
     results: dict[str, Any] = {}
     if args.merge and (args.out / "cosim_wp.json").exists():
         results = json.loads((args.out / "cosim_wp.json").read_text())["cases"]
-    meta = {
-        "date": datetime.datetime.now().isoformat(timespec="seconds"),
-        "python": sys.version.split()[0],
-        "machine": platform.machine(),
-        "cpus": os.cpu_count(),
-        "target": args.target,
-        "repeats": args.repeats,
-        "quick": args.quick,
-    }
+    meta = stamp(target=args.target, repeats=args.repeats, quick=args.quick)
     for case in args.cases:
         bench_case(case, args, results.setdefault(case, {}))
         # saved after every case: an interrupted run keeps what it measured (see --merge)
         text = json.dumps({"meta": meta, "cases": results}, indent=1)
         (args.out / "cosim_wp.json").write_text(text)
     md = (
-        table(results, args.target)
+        stamp_line(meta)
+        + "\n\n"
+        + table(results, args.target)
         + "\n\n"
         + "\n".join(f"- {r}" for r in ratios(results, args.target))
     )

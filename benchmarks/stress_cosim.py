@@ -28,6 +28,7 @@ from typing import Any
 
 import numpy as np
 from bench_cosim import POSITIONS, displacement_error
+from stamp import stamp
 
 from rubcosim.orchestrator.assembly import run_cosim
 from rubcosim.runner import run_scenario
@@ -125,6 +126,7 @@ def run_case(case: Case) -> dict[str, Any]:
     co = run_cosim(sc, record=list(POSITIONS), times=times)
     wall = time.perf_counter() - wall
     row: dict[str, Any] = {
+        "meta": stamp(),
         "case": case.name,
         "what": case.what,
         "expect": case.expect,
@@ -164,6 +166,12 @@ def table(rows: list[dict[str, Any]]) -> str:
             f"| {r['case']} | {r['what']} | {outcome} | {r['t_reached']:.4g} / {r['t_end']:.4g} s "
             f"| {r['steps']} | {r['events']} | {err} | {r['wall_s']:.1f} s "
             f"| {'yes' if r['passed'] else 'NO'} |"
+        )
+    commits = sorted({r["meta"]["git_commit"][:10] for r in rows if "meta" in r})
+    dates = sorted(r["meta"]["date"][:10] for r in rows if "meta" in r)
+    if commits:
+        lines.append(
+            f"\nOne run per case, {dates[0]} to {dates[-1]}, at commit(s) {', '.join(commits)}."
         )
     return "\n".join(lines)
 
