@@ -50,6 +50,7 @@ BENCHMARKS = (
     Benchmark("cosim_wp", ("bench_cosim.py",), COSIM),
     Benchmark("stress", ("stress_cosim.py",), COSIM),
     Benchmark("isolation", ("bench_isolation.py",), COSIM),
+    Benchmark("fmu_step", ("bench_fmu_step.py",), COSIM),
 )
 
 

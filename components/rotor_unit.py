@@ -18,6 +18,8 @@ from typing import Any
 import numpy as np
 
 from .declaration import FmuIdentity, Provided, UnitType, Wire, planar_states
+from .linear_propagation import affine_model, exact_step
+from .parameters import choice
 from .rotor import (
     JEFFCOTT_PARAMS,
     TWO_MASS_PARAMS,
@@ -48,6 +50,16 @@ _DISC_OUTPUTS = (
     real_signal("force_y", "N", "the rotor's own force on the disc along y"),
 )
 
+
+# How a linear unit steps its ODE over a macro step (the co-simulation's
+# ``cosim.unit_integrator``): exactly, or with the compiled DOP853 at rtol/atol.
+LINEAR_INTEGRATOR = choice(
+    "integrator",
+    "exact",
+    "exact: matrix exponential of the affine ODE with polynomial inputs and harmonic "
+    "unbalance (round-off only); dop853: the compiled DOP853 at rtol, atol",
+    ("exact", "dop853"),
+)
 
 RESET_PROTOCOL = (
     "Velocity reset protocol: write the new disc velocity to reset_vx, reset_vy and change "
@@ -80,15 +92,31 @@ class _Rotor(Unit):
     ode_params: tuple[str, ...]
     ode_inputs: tuple[str, ...]
 
+    def _ode_params(self) -> np.ndarray:
+        return np.array([self.params[k] for k in self.ode_params], dtype=float)
+
+    def _linear_model(self) -> tuple[np.ndarray, ...]:
+        """The affine form of the ODE (:func:`.linear_propagation.affine_model`), read off
+        once: the parameters never change after the unit is built."""
+        model = getattr(self, "_model", None)
+        if model is None:
+            n, n_in = len(self._initial_y()), len(self.ode_inputs)
+            model = affine_model(self.ode_kind, self._ode_params(), n, n_in, self.params["speed"])
+            self._model = model
+        return model
+
     def _advance(self, t: float, h: float) -> None:
         self._apply_reset()
         q = self.params
-        p = np.array([q[k] for k in self.ode_params], dtype=float)
         st = self.state
+        u = self.input_rows(self.ode_inputs)
+        if q["integrator"] == "exact":
+            if h > 0.0:
+                st["y"] = exact_step(t, h, st["y"], self._linear_model(), q["speed"], u)
+            return
         st["y"], st["h"] = step_ode(
-            self.ode_kind, t, t + h, st["y"], st["h"], p, self.input_rows(self.ode_inputs),
-            q["rtol"], q["atol"],
-        )  # fmt: skip
+            self.ode_kind, t, t + h, st["y"], st["h"], self._ode_params(), u, q["rtol"], q["atol"]
+        )
 
     def _disc_force(self, t: float, y: np.ndarray) -> tuple[float, float]:
         raise NotImplementedError
@@ -106,7 +134,7 @@ class JeffcottRotorUnit(_Rotor):
 
     type_name = "jeffcott"
     summary = "Jeffcott rotor (single disc) with unbalance; velocity reset input for rigid impacts"
-    params_spec = (*JEFFCOTT_PARAMS, *INTEGRATOR_PARAMS)
+    params_spec = (*JEFFCOTT_PARAMS, LINEAR_INTEGRATOR, *INTEGRATOR_PARAMS)
     inputs = _DISC_INPUTS
     outputs = _DISC_OUTPUTS
     ode_kind, ode_params, ode_inputs = JEFFCOTT, JEFFCOTT_P, ("fx", "fy")
@@ -124,7 +152,7 @@ class TwoMassRotorUnit(_Rotor):
 
     type_name = "two_mass"
     summary = "two-mass rotor (journal + disc); bearing force input on the journal"
-    params_spec = (*TWO_MASS_PARAMS, *INTEGRATOR_PARAMS)
+    params_spec = (*TWO_MASS_PARAMS, LINEAR_INTEGRATOR, *INTEGRATOR_PARAMS)
     inputs = (
         *_DISC_INPUTS,
         real_signal("journal_fx", "N", "bearing force on the journal along x"),

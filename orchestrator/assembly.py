@@ -48,6 +48,7 @@ def unit_parameters(scenario: Any, settings: CosimSettings) -> dict[str, dict[st
     for role, values in REGISTRY.neighbour_params(types, params).items():
         params[role].update(values)
     from_settings = {
+        "integrator": settings.unit_integrator,
         "rtol": settings.unit_rtol,
         "atol": settings.unit_atol,
         "chatter_tol": scenario.sim["chatter_tol"],
@@ -198,9 +199,11 @@ def run_cosim(
     record: list[str] | None = None,
     times: np.ndarray | None = None,
     fmu_dir: Path | None = None,
+    progress: bool = False,
 ) -> CosimResult:
     """Co-simulate a scenario's model graph; ``record`` defaults to the scenario's
-    outputs and ``times`` to its output grid plus stroboscopic times."""
+    outputs and ``times`` to its output grid plus stroboscopic times; ``progress`` shows
+    a bar on a terminal for long runs."""
     from rubcosim.timegrid import output_times
 
     settings = settings or scenario.cosim
@@ -227,5 +230,9 @@ def run_cosim(
             divergence_bounds(scenario, connections),
         )
         return master.run(
-            scenario.sim["t_start"], scenario.sim["t_end"], times, record or scenario.outputs
+            scenario.sim["t_start"],
+            scenario.sim["t_end"],
+            times,
+            record or scenario.outputs,
+            progress=progress,
         )

@@ -39,6 +39,7 @@ import numpy as np
 
 from rubcosim.components.unit import StepError
 from rubcosim.components.wiring import Connection
+from rubcosim.progress import watch
 
 from .cosim_result import CosimError, CosimResult
 from .event_steps import EventSteps
@@ -222,10 +223,17 @@ class Master(EventSteps, Rollback):
 
     # --- the run ---------------------------------------------------------------------------
     def run(
-        self, t_start: float, t_end: float, output_times: np.ndarray, record: Sequence[str]
+        self,
+        t_start: float,
+        t_end: float,
+        output_times: np.ndarray,
+        record: Sequence[str],
+        progress: bool = False,
     ) -> CosimResult:
         """Co-simulate from ``t_start`` to ``t_end`` recording ``record`` (``unit.output``)
-        at ``output_times``; a failure ends the run early with ``status = "failed"``."""
+        at ``output_times``; a failure ends the run early with ``status = "failed"``.
+        ``progress``: a bar in simulated time on a terminal for runs of more than a couple
+        of seconds."""
         wall = time.perf_counter()
         st = self.settings
         self.time = float(t_start)
@@ -245,7 +253,8 @@ class Master(EventSteps, Rollback):
             self.hist = {k: [(self.time, v)] for k, v in real.items()}
             self.scale = {k: max(abs(v), self.nominal.get(k, 0.0)) for k, v in real.items()}
             self._record_due()
-            self._loop(t_end)
+            with watch("co-simulation", t_start, t_end, lambda: self.time, enabled=progress):
+                self._loop(t_end)
         except (CosimError, StepError) as exc:
             status, message = "failed", str(exc)
         n = len(self.output_times[: len(self.rows)])

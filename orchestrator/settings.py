@@ -10,6 +10,7 @@ from typing import Any
 ALGORITHMS = ("gauss-seidel", "jacobi")
 EVENT_MODES = ("locate", "step", "off")
 BACKENDS = ("direct", "fmu")
+UNIT_INTEGRATORS = ("exact", "dop853")
 
 
 class SettingsError(ValueError):
@@ -47,6 +48,8 @@ class CosimSettings:
     # sim.chatter_tol, raised to MIN_CHATTER_TOL (the one rule of both sides)
     chatter_tol: float | None = None
     max_events_per_period: int = 2000
+    # how linear units (the rotors) step: "exact" (matrix exponential) or "dop853"
+    unit_integrator: str = "exact"
     unit_rtol: float = 1e-10  # tolerances of the units' own integrators
     unit_atol: float = 1e-14
     order: tuple[str, ...] = ()  # Gauss-Seidel order of the units (default: by dependency)
@@ -106,6 +109,8 @@ def cosim_settings(raw: Mapping[str, Any]) -> CosimSettings:
             v[key] = _choice(key, value, ALGORITHMS)
         elif key == "events":
             v[key] = _choice(key, value, EVENT_MODES)
+        elif key == "unit_integrator":
+            v[key] = _choice(key, value, UNIT_INTEGRATORS)
         elif key == "extrapolation":
             v[key] = _integer(key, value, 0, 2)
         elif key == "iterations":

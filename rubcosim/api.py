@@ -70,18 +70,22 @@ def simulate(
     scenario: ScenarioLike,
     engine: str | None = None,
     set: Params = None,  # noqa: A002
+    progress: bool = False,
 ) -> SimulationResult:
     """Integrate the scenario with a monolithic engine: ``"fast"`` (compiled DOP853 with
     event location) or ``"accurate"`` (scipy); default its ``sim.engine``.  ``set``:
     overrides as in :func:`load` (``rc.simulate("impact_duffing", set={"sim.t_end":
-    50.0})``, like FMPy's ``simulate_fmu(filename, start_values=...)``)."""
+    50.0})``, like FMPy's ``simulate_fmu(filename, start_values=...)``).  ``progress``:
+    a bar in simulated time on a terminal when the run lasts more than two seconds."""
     from rubcosim.reference.simulate import ENGINES
 
     from .runner import run_scenario
 
     if engine is not None and engine not in ENGINES:
         raise ScenarioError(f"engine = {engine!r} is not one of {', '.join(ENGINES)}")
-    return SimulationResult(run_scenario(_scenario(scenario, set), engine=engine))
+    return SimulationResult(
+        run_scenario(_scenario(scenario, set), engine=engine, progress=progress)
+    )
 
 
 def _settings(scenario: Scenario, backend: str | None) -> Any:
@@ -96,6 +100,7 @@ def cosimulate(
     scenario: ScenarioLike,
     backend: str | None = None,
     set: Params = None,  # noqa: A002
+    progress: bool = False,
 ) -> SimulationResult:
     """Co-simulate the scenario's units with the orchestrator: ``backend="direct"``
     (in-process units) or ``"fmu"`` (the FMUs through fmpy); default its
@@ -104,20 +109,24 @@ def cosimulate(
     from .runner import run_cosim_scenario
 
     sc = _scenario(scenario, set)
-    return SimulationResult(run_cosim_scenario(sc, _settings(sc, backend).backend))
+    return SimulationResult(
+        run_cosim_scenario(sc, _settings(sc, backend).backend, progress=progress)
+    )
 
 
 def check(
     scenario: ScenarioLike,
     backend: str | None = None,
     set: Params = None,  # noqa: A002
+    progress: bool = False,
 ) -> CheckResult:
     """Co-simulate the scenario and compare it with the ``accurate`` engine (``rubcosim
-    check``): per output the largest difference, impact counts and times (s)."""
+    check``): per output the largest difference, impact counts and times (s);
+    ``progress`` as for :func:`simulate`."""
     from rubcosim.consistency import compare
 
     sc = _scenario(scenario, set)
-    report, ref, co, rows = compare(sc, _settings(sc, backend))
+    report, ref, co, rows = compare(sc, _settings(sc, backend), progress=progress)
     return CheckResult(sc, report, ref, co, rows)
 
 

@@ -69,6 +69,12 @@ def _parser() -> argparse.ArgumentParser:
         help="override a parameter or a sim./cosim. setting (repeatable)",
     )
     check.add_argument("--out", required=True, help="directory for report.json and comparison.png")
+    for parser in (run, check):
+        parser.add_argument(
+            "--no-progress",
+            action="store_true",
+            help="no progress bar (shown on a terminal for runs of more than 2 s)",
+        )
     _analysis_parsers(sub)
     cli_lyapunov.add_parser(sub, SCENARIO_HELP)
     sub.add_parser("scenarios", help="list the bundled scenarios with their descriptions")
@@ -311,7 +317,7 @@ def cmd_build_fmus(args: argparse.Namespace) -> int:
 def cmd_check(args: argparse.Namespace) -> int:
     scenario = api.load(args.scenario, args.set)
     check_output_dir(args.out)
-    checked = api.check(scenario, args.backend)
+    checked = api.check(scenario, args.backend, progress=not args.no_progress)
     out = checked.write(args.out)
     report, co = checked.report, checked.cosim
     wall = report["wall_time_s"]
@@ -333,7 +339,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     if args.backend is not None and args.engine is not None:
         raise ScenarioError("--engine and --backend exclude each other")
     if args.backend is not None:
-        res = api.cosimulate(scenario, args.backend)
+        res = api.cosimulate(scenario, args.backend, progress=not args.no_progress)
         c = res.counters
         what = (
             f"{c.get('events', 0)} events ({c.get('events_impact', 0)} impacts), "
@@ -342,7 +348,7 @@ def cmd_run(args: argparse.Namespace) -> int:
         )
         engine, failure = res.engine, "co-simulation"
     else:
-        res = api.simulate(scenario, args.engine)
+        res = api.simulate(scenario, args.engine, progress=not args.no_progress)
         c = res.counters
         what = f"{c['events']} events ({c['impacts']} impacts)"
         engine, failure = f"{res.engine} engine", "simulation"

@@ -40,17 +40,25 @@ def nearest_differences(times: np.ndarray, reference: np.ndarray) -> np.ndarray:
     return np.minimum(np.abs(times - left), np.abs(times - right))
 
 
-def compare(scenario: Any, settings: CosimSettings | None = None, fmu_dir: Path | None = None):
-    """Run both and return ``(report, reference_run, cosim_result, grid_rows)``."""
+def compare(
+    scenario: Any,
+    settings: CosimSettings | None = None,
+    fmu_dir: Path | None = None,
+    progress: bool = False,
+):
+    """Run both and return ``(report, reference_run, cosim_result, grid_rows)``;
+    ``progress``: bars in simulated time on a terminal for long runs."""
     from .runner import run_scenario
 
     settings = settings or scenario.cosim
-    ref = run_scenario(scenario, engine="accurate")
+    ref = run_scenario(scenario, engine="accurate", progress=progress)
     times, grid_rows, _ = output_times(scenario)
     record = list(scenario.outputs)
     if "oscillator" in scenario.graph.units:
         record.append("oscillator.impacts")
-    co = run_cosim(scenario, settings, record=record, times=times, fmu_dir=fmu_dir)
+    co = run_cosim(
+        scenario, settings, record=record, times=times, fmu_dir=fmu_dir, progress=progress
+    )
     n = min(len(co.t), ref.result.t.size)
     rows = grid_rows[grid_rows < n]
     outputs = {}

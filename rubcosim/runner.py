@@ -68,8 +68,11 @@ class CosimRun:
         return self.result.output(name)[self._rows(self.strobe_rows)]
 
 
-def run_cosim_scenario(scenario: Scenario, backend: str | None = None) -> CosimRun:
-    """Co-simulate a scenario with its ``[cosim]`` settings (``backend`` overrides)."""
+def run_cosim_scenario(
+    scenario: Scenario, backend: str | None = None, progress: bool = False
+) -> CosimRun:
+    """Co-simulate a scenario with its ``[cosim]`` settings (``backend`` overrides);
+    ``progress``: a bar in simulated time on a terminal for long runs."""
     from dataclasses import replace
 
     from rubcosim.orchestrator.assembly import run_cosim
@@ -77,7 +80,7 @@ def run_cosim_scenario(scenario: Scenario, backend: str | None = None) -> CosimR
 
     settings = scenario.cosim if backend is None else replace(scenario.cosim, backend=backend)
     times, grid_rows, strobe_rows = output_times(scenario)
-    result = run_cosim(scenario, settings, times=times)
+    result = run_cosim(scenario, settings, times=times, progress=progress)
     return CosimRun(scenario, result, grid_rows, strobe_rows)
 
 
@@ -108,7 +111,9 @@ def cosim_report(run: CosimRun) -> dict[str, Any]:
     }
 
 
-def run_scenario(scenario: Scenario, engine: str | None = None) -> ScenarioRun:
+def run_scenario(
+    scenario: Scenario, engine: str | None = None, progress: bool = False
+) -> ScenarioRun:
     if scenario.fmus:
         name = next(iter(scenario.fmus))
         raise ScenarioError(
@@ -132,6 +137,7 @@ def run_scenario(scenario: Scenario, engine: str | None = None) -> ScenarioRun:
         rtol=sim["rtol"],
         atol=sim["atol"],
         max_events=sim["max_events"],
+        progress=progress,
     )
     return ScenarioRun(scenario, result, rank[: grid.size], rank[grid.size :])
 

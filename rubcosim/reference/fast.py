@@ -120,7 +120,8 @@ def rk_step(t, y, f, h, mode, p, ip, hist, yd, K, y_new, f_new, ytmp, dy, cnt):
     cnt[C_RHS] += N_STAGES
 
 
-@nb.njit(cache=True)
+# nogil: a progress thread (rubcosim.progress) reads the counters while it runs
+@nb.njit(cache=True, nogil=True)
 def integrate(y0, mode, t0, t_end, p, ip, tol, out, hist, dde, y_final, tan=None):
     """Integrate from t0 to t_end; returns ``(t, mode)`` reached (t < t_end on failure).
 

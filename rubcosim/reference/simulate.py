@@ -8,11 +8,13 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from rubcosim.progress import watch
 from rubcosim.timegrid import output_grid
 
 from . import accurate, fast
 from .assemble import System
 from .core import (
+    C_EVAL,
     C_EVENTS,
     C_IMPACTS,
     C_REJECTED,
@@ -121,13 +123,16 @@ def simulate(
     max_events: int = 100_000,
     max_step: float = math.inf,
     history_capacity: int = 4096,
+    progress: bool = False,
 ) -> Result:
     """Integrate ``system`` from ``t_start`` to ``t_end``.
 
     ``atol`` is relative to each state's characteristic size
     (``system.state_scale``: clearance for displacements, clearance times
     speed for velocities); it defaults to ``rtol``.  Outputs are recorded at
-    ``t_eval`` (sorted), or on a uniform grid of ``output_step``.
+    ``t_eval`` (sorted), or on a uniform grid of ``output_step``.  ``progress``: a bar
+    in simulated time on a terminal when the run lasts more than a couple of seconds
+    (:mod:`rubcosim.progress`).
     """
     if engine not in ENGINES:
         raise ValueError(f"engine = {engine!r} is not one of {', '.join(ENGINES)}")
@@ -162,19 +167,27 @@ def simulate(
         cnt = np.zeros(N_COUNTERS, dtype=np.int64)
         y_final = np.empty(n)
         t0 = time.perf_counter()
-        t_reached, mode = integrate(
-            system.y0.copy(),
-            system.mode0,
-            t_start,
-            t_end,
-            p_vals,
-            ip_vals,
-            (rtol, atol_arr, max_step),
-            (t_eval, rec, evlog, cnt),
-            hist,
-            (queue, qmeta),
-            y_final,
-        )
+
+        def reached(cnt=cnt, t_eval=t_eval) -> float:
+            # the engine writes how many grid points it has recorded (the compiled one
+            # runs without the GIL, so this thread reads it while it runs)
+            done = int(cnt[C_EVAL])
+            return float(t_eval[done - 1]) if 0 < done <= t_eval.shape[0] else t_start
+
+        with watch(f"{engine} engine", t_start, t_end, reached, enabled=progress):
+            t_reached, mode = integrate(
+                system.y0.copy(),
+                system.mode0,
+                t_start,
+                t_end,
+                p_vals,
+                ip_vals,
+                (rtol, atol_arr, max_step),
+                (t_eval, rec, evlog, cnt),
+                hist,
+                (queue, qmeta),
+                y_final,
+            )
         wall = time.perf_counter() - t0
         if hist is not None and hist[5][HM_OVERFLOW] and cnt[C_STATUS] == STATUS_OK:
             cnt[C_STATUS] = STATUS_HISTORY_OVERFLOW

@@ -1,0 +1,129 @@
+"""Cost of one ``fmi2DoStep`` of the rotor FMUs, through fmpy, for each unit integrator.
+
+The Jeffcott and two-mass rotor FMUs are built from the current sources, loaded with
+fmpy's ``FMU2Slave`` and stepped with macro steps of T/400 (the co-simulation's default
+first step) while their force inputs change every step with first and second
+derivatives (as our master sets them); each integrator (``exact``: the matrix
+exponential of :mod:`rubcosim.components.linear_propagation`; ``dop853``: the units'
+DOP853, plain Python inside the FMU) is timed over ``--steps`` steps, ``--repeats``
+times; the median per step is reported with its min-max over the repeats.
+
+Run from the repository root::
+
+    .venv/bin/python benchmarks/bench_fmu_step.py [--steps 2000] [--repeats 5]
+
+Writes ``fmu_step.json`` and ``fmu_step.md`` to ``--out`` (default benchmarks/results).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import statistics
+import tempfile
+import time
+from pathlib import Path
+
+from stamp import REPO, stamp, stamp_line
+
+from rubcosim.fmus.build import build_fmus
+
+RESULTS = REPO / "benchmarks" / "results"
+ROTORS = {
+    "RubcosimJeffcottRotor": {"eccentricity": 5e-5, "damping": 316.2},
+    "RubcosimTwoMassRotor": {"eccentricity": 5e-5, "damping": 316.2, "shaft_damping": 50.0},
+}
+SPEED = 379.473319  # rad/s: the FMUs' default speed
+DERIVATIVES = ("fx_d1", "fx_d2", "fy_d1", "fy_d2")
+
+
+def time_fmu(path: Path, params: dict[str, float], integrator: str, steps: int) -> float:
+    """Seconds per fmi2DoStep over ``steps`` steps of T/400."""
+    from fmpy import extract, read_model_description
+    from fmpy.fmi2 import FMU2Slave
+
+    md = read_model_description(str(path))
+    vr = {v.name: v.valueReference for v in md.modelVariables}
+    fmu = FMU2Slave(
+        guid=md.guid,
+        unzipDirectory=extract(str(path)),
+        modelIdentifier=md.coSimulation.modelIdentifier,
+        instanceName="bench",
+    )
+    fmu.instantiate()
+    fmu.setReal([vr[k] for k in params], list(params.values()))
+    fmu.setString([vr["integrator"]], [integrator])
+    fmu.setupExperiment(startTime=0.0)
+    fmu.enterInitializationMode()
+    fmu.exitInitializationMode()
+    h = 2.0 * math.pi / SPEED / 400.0
+    inputs = [vr["fx"], vr["fy"]]
+    derivs = [vr[k] for k in DERIVATIVES]
+    t = 0.0
+    wall = 0.0
+    for k in range(steps):
+        fmu.setReal(inputs, [math.cos(0.01 * k), math.sin(0.01 * k)])
+        fmu.setReal(derivs, [3.0, 1e3, -2.0, 5e2])
+        start = time.perf_counter()
+        fmu.doStep(t, h)
+        wall += time.perf_counter() - start
+        t += h
+    fmu.terminate()
+    fmu.freeInstance()
+    return wall / steps
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n", 1)[0])
+    parser.add_argument("--steps", type=int, default=2000)
+    parser.add_argument("--repeats", type=int, default=5)
+    parser.add_argument("--out", type=Path, default=RESULTS)
+    args = parser.parse_args(argv)
+    if args.steps < 1 or args.repeats < 1:
+        parser.error("--steps and --repeats must be >= 1")
+    with tempfile.TemporaryDirectory(prefix="bench_fmu_step_") as tmp:
+        built = {p.stem: p for p in build_fmus(tmp, only=list(ROTORS))}
+        rows = []
+        for name, params in ROTORS.items():
+            for integrator in ("exact", "dop853"):
+                time_fmu(built[name], params, integrator, 50)  # load, first calls
+                runs = [
+                    time_fmu(built[name], params, integrator, args.steps)
+                    for _ in range(args.repeats)
+                ]
+                rows.append(
+                    {
+                        "fmu": name,
+                        "integrator": integrator,
+                        "median_s": statistics.median(runs),
+                        "runs_s": runs,
+                    }  # fmt: skip
+                )
+                print(f"{name:24s} {integrator:7s} {statistics.median(runs) * 1e6:8.1f} us/step")
+    meta = stamp(steps=args.steps, repeats=args.repeats, step="T/400")
+    args.out.mkdir(parents=True, exist_ok=True)
+    (args.out / "fmu_step.json").write_text(json.dumps({"meta": meta, "rows": rows}, indent=1))
+    lines = [
+        "# Rotor FMUs: cost of one fmi2DoStep",
+        "",
+        "| FMU | unit integrator | fmi2DoStep, median | min - max |",
+        "|---|---|---:|---:|",
+    ]
+    for r in rows:
+        lo, hi = min(r["runs_s"]) * 1e6, max(r["runs_s"]) * 1e6
+        lines.append(
+            f"| {r['fmu']} | {r['integrator']} | {r['median_s'] * 1e6:.0f} us | "
+            f"{lo:.0f} - {hi:.0f} us |"
+        )
+    lines += [
+        "",
+        f"Through fmpy, steps of T/400 with changing inputs and input derivatives; median "
+        f"over {args.repeats} runs of {args.steps} steps. " + stamp_line(meta),
+    ]
+    (args.out / "fmu_step.md").write_text("\n".join(lines) + "\n")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
