@@ -69,7 +69,8 @@ def main(argv: list[str] | None = None) -> int:
     if args.check and differ:
         print(f"results blocks out of date in {', '.join(differ)}", file=sys.stderr)
         return 1
-    print(f"{'differ' if differ else 'up to date'}: {', '.join(d.name for d in DOCUMENTS)}")
+    names = ", ".join(differ) if differ else ", ".join(d.name for d in DOCUMENTS)
+    print(f"{'rewritten' if differ and not args.check else 'up to date'}: {names}")
     return 0
 
 

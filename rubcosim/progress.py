@@ -41,6 +41,7 @@ def watch(
     from tqdm import tqdm
 
     total = t_end - t_start
+
     def describe(t: float) -> str:
         return f"{label}: t = {t:.4g} of {t_end:.4g} s"
 
