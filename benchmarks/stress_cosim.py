@@ -11,7 +11,10 @@ each.
 
 Run from the repository root (a few minutes)::
 
-    .venv/bin/python benchmarks/stress_cosim.py [--only NAME ...] [--out DIR]
+    .venv/bin/python benchmarks/stress_cosim.py [--only NAME ...] [--long] [--out DIR]
+
+``--long`` adds the 10,000-period run of the offset rigid stator (about 25 minutes on
+the Python master; not part of ``make bench``).
 
 It writes ``stress.json`` and ``stress.md`` to ``--out`` (default
 ``benchmarks/results``) and prints the table.
@@ -50,6 +53,7 @@ class Case:
     overrides: tuple[str, ...]
     expect: str  # "ok" or "unstable"
     compare: bool = True
+    long: bool = False  # run only with --long (tens of minutes on the Python master)
 
 
 def cases() -> list[Case]:
@@ -98,6 +102,7 @@ def cases() -> list[Case]:
             ("sim.t_end=165.6", "sim.output_step=0.1656", "cosim.rtol=1e-4"),
             "ok",
             compare=False,
+            long=True,
         ),
         Case(
             "mixed FMU/direct",
@@ -184,6 +189,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument(
         "--merge", action="store_true", help="keep the other cases of an earlier stress.json"
     )
+    parser.add_argument(
+        "--long", action="store_true", help="also the long cases (10,000 periods: ~25 min)"
+    )
     args = parser.parse_args(argv)
     args.out.mkdir(parents=True, exist_ok=True)
     saved = args.out / "stress.json"
@@ -191,6 +199,8 @@ def main(argv: list[str] | None = None) -> int:
     done = []
     for case in cases():
         if args.only and case.name not in args.only:
+            continue
+        if case.long and not (args.long or (args.only and case.name in args.only)):
             continue
         r = run_case(case)
         kept[r["case"]] = r
