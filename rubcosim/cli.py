@@ -13,7 +13,7 @@ from rubcosim.orchestrator.master import CosimError
 from rubcosim.orchestrator.settings import BACKENDS
 from rubcosim.reference.simulate import ENGINES
 
-from . import api, cli_lyapunov
+from . import api, cli_lyapunov, cli_ssp
 from .analysis.errors import AnalysisError
 from .analysis.sweep import DIRECTIONS
 from .basinsettings import BASIN_METHODS
@@ -77,6 +77,7 @@ def _parser() -> argparse.ArgumentParser:
         )
     _analysis_parsers(sub)
     cli_lyapunov.add_parser(sub, SCENARIO_HELP)
+    cli_ssp.add_parser(sub, SCENARIO_HELP)
     sub.add_parser("scenarios", help="list the bundled scenarios with their descriptions")
     warm = sub.add_parser(
         "warm-up", help="compile the numba kernels into the cache once (make setup runs it)"
@@ -384,6 +385,7 @@ COMMANDS = {
     "sweep": cmd_sweep,
     "basins": cmd_basins,
     "lyapunov": cli_lyapunov.cmd_lyapunov,
+    "export-ssp": cli_ssp.cmd_export_ssp,
     "scenarios": cmd_scenarios,
     "warm-up": cmd_warm_up,
 }
