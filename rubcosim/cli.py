@@ -17,6 +17,7 @@ from . import api, cli_lyapunov, cli_ssp
 from .analysis.errors import AnalysisError
 from .analysis.sweep import DIRECTIONS
 from .basinsettings import BASIN_METHODS
+from .cli_options import add_set_option
 from .scenario import ScenarioError
 from .writing import check_output_dir, write_directory
 
@@ -33,13 +34,7 @@ def _parser() -> argparse.ArgumentParser:
     sub = ap.add_subparsers(dest="command", required=True)
     run = sub.add_parser("run", help="run a scenario with the monolithic reference")
     run.add_argument("scenario", help=SCENARIO_HELP)
-    run.add_argument(
-        "--set",
-        action="append",
-        default=[],
-        metavar="UNIT.PARAM=VALUE",
-        help="override a parameter, initial state or sim setting (repeatable)",
-    )
+    add_set_option(run, "a parameter, initial state or sim setting")
     run.add_argument(
         "--engine", choices=sorted(ENGINES), help="integrator (default: the scenario's sim.engine)"
     )
@@ -61,13 +56,7 @@ def _parser() -> argparse.ArgumentParser:
     check.add_argument(
         "--backend", choices=BACKENDS, help="units in-process or as FMUs (default: [cosim])"
     )
-    check.add_argument(
-        "--set",
-        action="append",
-        default=[],
-        metavar="UNIT.PARAM=VALUE",
-        help="override a parameter or a sim./cosim. setting (repeatable)",
-    )
+    add_set_option(check, "a parameter or a sim./cosim. setting")
     check.add_argument("--out", required=True, help="directory for report.json and comparison.png")
     for parser in (run, check):
         parser.add_argument(
@@ -100,13 +89,7 @@ def _parser() -> argparse.ArgumentParser:
 def _analysis_parsers(sub: Any) -> None:
     def common(p: argparse.ArgumentParser) -> None:
         p.add_argument("scenario", help=SCENARIO_HELP)
-        p.add_argument(
-            "--set",
-            action="append",
-            default=[],
-            metavar="UNIT.PARAM=VALUE",
-            help="override a parameter or initial state (repeatable)",
-        )
+        add_set_option(p, "a parameter or initial state")
         p.add_argument("--out", required=True, help="output directory")
         p.add_argument(
             "--rtol",

@@ -7,6 +7,7 @@ import math
 from typing import Any
 
 from . import api
+from .cli_options import add_set_option
 
 
 def add_parser(sub: Any, scenario_help: str) -> None:
@@ -16,13 +17,7 @@ def add_parser(sub: Any, scenario_help: str) -> None:
         help="Lyapunov spectrum from the variational equations (saltation at every event)",
     )
     ly.add_argument("scenario", help=scenario_help)
-    ly.add_argument(
-        "--set",
-        action="append",
-        default=[],
-        metavar="UNIT.PARAM=VALUE",
-        help="override a parameter or initial state (repeatable)",
-    )
+    add_set_option(ly, "a parameter or initial state")
     ly.add_argument("--periods", type=int, default=1000, help="forcing periods measured")
     ly.add_argument("--transient", type=int, default=200, help="forcing periods discarded first")
     ly.add_argument("--rtol", type=float, default=None, help="the fast engine's tolerance")

@@ -6,6 +6,7 @@ import argparse
 from typing import Any
 
 from . import api
+from .cli_options import add_set_option
 
 
 def add_parser(sub: Any, scenario_help: str) -> None:
@@ -15,13 +16,7 @@ def add_parser(sub: Any, scenario_help: str) -> None:
         help="write the scenario as an SSP 1.0 package (its FMUs, SystemStructure.ssd)",
     )
     ex.add_argument("scenario", help=scenario_help)
-    ex.add_argument(
-        "--set",
-        action="append",
-        default=[],
-        metavar="UNIT.PARAM=VALUE",
-        help="override a parameter or setting first (repeatable)",
-    )
+    add_set_option(ex, "a parameter or setting first")
     ex.add_argument("--out", required=True, help="the package to write, e.g. DIR/system.ssp")
 
 
