@@ -39,7 +39,8 @@ def scenarios() -> dict[str, str]:
 
 def load(source: ScenarioLike, set: Params = None) -> Scenario:  # noqa: A002
     """A validated scenario from a bundled scenario's name (``"impact_duffing"``), a
-    TOML file's path, or a dict with the TOML's structure (``{"sim": {...},
+    TOML file's path, an SSP package's path (``system.ssp``), or a dict with the TOML's
+    structure (``{"sim": {...},
     "units": {...}}``), with the overrides ``set``: ``{"rotor.speed": 400,
     "sim.t_end": 0.5}`` or ``["rotor.speed=400"]`` (as ``--set``).  The scenario keeps
     them: ``scenario.with_params({...})`` adds more."""
@@ -50,6 +51,10 @@ def load(source: ScenarioLike, set: Params = None) -> Scenario:  # noqa: A002
         return source.with_params(table) if table else source
     if isinstance(source, Mapping):
         return build_scenario(source, strings, params=params)
+    if str(source).endswith(".ssp"):  # an SSP package (rubcosim export-ssp, or by hand)
+        from .ssp_import import scenario_table
+
+        return build_scenario(scenario_table(source), strings, params=params)
     return load_scenario(source, strings, params=params)
 
 

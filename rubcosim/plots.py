@@ -25,10 +25,11 @@ def _default_pair(run: ScenarioRun) -> list[str]:
     return ["rotor.x", "rotor.y"] if "rotor.y" in names else ["oscillator.x", "oscillator.v"]
 
 
-def _stator_circle(run: ScenarioRun, ax) -> None:
+def _stator_circle(run: ScenarioRun, ax) -> bool:
+    """Draw the stator's clearance circle; False when the scenario has no stator."""
     units = run.scenario.system.units
     if "stator" not in units:
-        return
+        return False
     s = units["stator"].params
     th = np.linspace(0.0, 2.0 * np.pi, 361)
     ax.plot(
@@ -38,15 +39,16 @@ def _stator_circle(run: ScenarioRun, ax) -> None:
         lw=0.8,
         label="stator (clearance)",
     )
+    return True
 
 
 def orbit(run: ScenarioRun, names: list[str], path: Path) -> None:
     fig, ax = plt.subplots(figsize=(5.5, 5.0))
     ax.plot(run.series(names[0]), run.series(names[1]), lw=0.6)
     if names == ["rotor.x", "rotor.y"]:
-        _stator_circle(run, ax)
         ax.set_aspect("equal")
-        ax.legend(loc="upper right", fontsize=8)
+        if _stator_circle(run, ax):
+            ax.legend(loc="upper right", fontsize=8)
     ax.set_xlabel(names[0])
     ax.set_ylabel(names[1])
     _sci(ax)

@@ -4,19 +4,23 @@ agrees with our own fixed-step Jacobi master on the same step; what SSP cannot c
 
 from __future__ import annotations
 
+import sys
 import zipfile
+from pathlib import Path
 from xml.etree import ElementTree as ET
 
 import numpy as np
 import pytest
 
+from rubcosim import api
 from rubcosim.cli import main
 from rubcosim.errors import ScenarioError
-from rubcosim.orchestrator.assembly import run_cosim
+from rubcosim.orchestrator.assembly import fmu_paths, run_cosim
 from rubcosim.orchestrator.settings import cosim_settings
 from rubcosim.scenario import load_scenario
 from rubcosim.ssp_export import export_ssp
 
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "examples" / "foreign_fmu"))
 fmpy_ssd = pytest.importorskip("fmpy.ssp.ssd")
 fmpy_sim = pytest.importorskip("fmpy.ssp.simulation")
 
@@ -121,3 +125,121 @@ def test_cli_export_ssp_writes_the_package_and_refuses_a_bad_name(tmp_path, caps
     assert (tmp_path / "a" / "system.ssp").is_file()
     assert main([*args, "--out", str(tmp_path / "system.zip")]) == 2
     assert "ends in .ssp" in capsys.readouterr().err
+
+
+# --- running an SSP package (rubcosim run system.ssp) -------------------------------
+
+
+def test_an_exported_package_runs_as_the_scenario_it_came_from(elastic, tmp_path):
+    sc, path = elastic
+    back = api.load(str(path))
+    assert set(back.graph.units) == {"rotor", "stator"}
+    want = run_cosim(sc, record=["rotor.x", "stator.normal_force"])
+    got = run_cosim(back, record=["rotor.x", "stator.normal_force"], times=want.t)
+    assert got.ok and np.array_equal(got.output("rotor.x"), want.output("rotor.x"))
+    assert main(["run", str(path), "--backend", "direct", "--out", str(tmp_path / "r")]) == 0
+
+
+BALL_SSD = """<?xml version="1.0" encoding="UTF-8"?>
+<ssd:SystemStructureDescription version="1.0" name="rotor_and_ball"
+    xmlns:ssd="http://ssp-standard.org/SSP1/SystemStructureDescription"
+    xmlns:ssc="http://ssp-standard.org/SSP1/SystemStructureCommon"
+    xmlns:ssv="http://ssp-standard.org/SSP1/SystemStructureParameterValues">
+  <ssd:System name="rotor_and_ball">
+    <ssd:Elements>
+      <ssd:Component name="disc" type="application/x-fmu-sharedlibrary"
+          source="resources/RubcosimJeffcottRotor.fmu">
+        <ssd:Connectors>
+          <ssd:Connector name="fy" kind="input"><ssc:Real/></ssd:Connector>
+          <ssd:Connector name="y" kind="output"><ssc:Real/></ssd:Connector>
+        </ssd:Connectors>
+        <ssd:ParameterBindings><ssd:ParameterBinding><ssd:ParameterValues>
+          <ssv:ParameterSet version="1.0" name="disc"><ssv:Parameters>
+            <ssv:Parameter name="eccentricity"><ssv:Real value="5e-05"/></ssv:Parameter>
+            <ssv:Parameter name="damping"><ssv:Real value="316.227766"/></ssv:Parameter>
+          </ssv:Parameters></ssv:ParameterSet>
+        </ssd:ParameterValues></ssd:ParameterBinding></ssd:ParameterBindings>
+      </ssd:Component>
+      <ssd:Component name="ball" type="application/x-fmu-sharedlibrary"
+          source="resources/bouncing_ball.fmu">
+        <ssd:Connectors><ssd:Connector name="h" kind="output"><ssc:Real/></ssd:Connector>
+        </ssd:Connectors>
+        <ssd:ParameterBindings><ssd:ParameterBinding><ssd:ParameterValues>
+          <ssv:ParameterSet version="1.0" name="ball"><ssv:Parameters>
+            <ssv:Parameter name="h0"><ssv:Real value="0.0001"/></ssv:Parameter>
+          </ssv:Parameters></ssv:ParameterSet>
+        </ssd:ParameterValues></ssd:ParameterBinding></ssd:ParameterBindings>
+      </ssd:Component>
+    </ssd:Elements>
+    <ssd:Connections>
+      <ssd:Connection startElement="ball" startConnector="h" endElement="disc" endConnector="fy"/>
+    </ssd:Connections>
+  </ssd:System>
+  <ssd:DefaultExperiment startTime="0" stopTime="0.02"/>
+</ssd:SystemStructureDescription>
+"""
+
+
+def _ball_package(tmp_path, ssd: str = BALL_SSD):
+    from build import build  # examples/foreign_fmu/build.py: a C FMU built with gcc
+
+    ball = build(tmp_path / "bouncing_ball.fmu")
+    rotor = fmu_paths({"rotor": "jeffcott"}, None)["rotor"]
+    path = tmp_path / "by_hand.ssp"
+    with zipfile.ZipFile(path, "w") as zf:
+        zf.writestr("SystemStructure.ssd", ssd)
+        zf.write(rotor, f"resources/{rotor.name}")
+        zf.write(ball, "resources/bouncing_ball.fmu")
+    return path
+
+
+def test_a_package_written_by_hand_wires_a_c_fmu_to_ours(tmp_path, capsys):
+    path = _ball_package(tmp_path)
+    sc = api.load(str(path))
+    assert sc.graph.units["rotor"].params["eccentricity"] == 5e-5 and "ball" in sc.fmus
+    # the same system written as a scenario: the SSP's wiring, nothing else
+    table = {
+        "scenario": {"name": "by_toml"},
+        "sim": {"t_end": 0.02},
+        "units": {
+            "rotor": {
+                "type": "jeffcott",
+                "eccentricity": 5e-5,
+                "damping": 316.227766,
+                # what the SSD leaves unbound: the FMU's start values (its examples)
+                "mass": 10.0,
+                "stiffness": 1e6,
+                "speed": 379.473319,
+            }
+        },  # fmt: skip
+        "fmus": {"ball": {"path": str(tmp_path / "bouncing_ball.fmu"), "start": {"h0": 1e-4}}},
+        "connections": {"rotor.fy": ["ball.h"], "rotor.fx": []},
+    }
+    ref = run_cosim(api.load(table), record=["rotor.y", "ball.h"])
+    got = run_cosim(sc, record=["rotor.y", "ball.h"], times=ref.t)
+    assert got.ok and np.array_equal(got.output("rotor.y"), ref.output("rotor.y"))
+    table["connections"]["rotor.fy"] = []
+    alone = run_cosim(api.load(table), record=["rotor.y"], times=ref.t)
+    assert np.max(np.abs(alone.output("rotor.y") - got.output("rotor.y"))) > 0.0  # ball pushes
+    out = tmp_path / "run"
+    assert main(["run", str(path), "--backend", "fmu", "--out", str(out)]) == 0
+    assert (out / "report.json").is_file()
+
+
+@pytest.mark.parametrize(
+    "damage, message",
+    [
+        (lambda s: s.replace('endElement="disc"', 'endElement="shaft"'), "names a component"),
+        (
+            lambda s: s.replace("resources/bouncing_ball.fmu", "resources/missing.fmu"),
+            "is not in the package",
+        ),  # fmt: skip
+    ],
+)
+def test_a_broken_package_is_refused_naming_the_element(tmp_path, damage, message):
+    path = _ball_package(tmp_path, damage(BALL_SSD))
+    with pytest.raises(ScenarioError, match=message):
+        api.load(str(path))
+    (tmp_path / "junk.ssp").write_text("not a zip")
+    with pytest.raises(ScenarioError, match="not an SSP package"):
+        api.load(str(tmp_path / "junk.ssp"))
