@@ -20,7 +20,20 @@ sys.path.insert(0, str(REPO / "benchmarks"))
 import catalog  # noqa: E402
 import readme_tables  # noqa: E402
 
-IN_GIT = (REPO / ".git").exists()
+
+def _has_history() -> bool:
+    """A git checkout with its history (a shallow clone cannot date the figures)."""
+    try:
+        out = subprocess.run(
+            ["git", "rev-parse", "--is-shallow-repository"],
+            cwd=REPO, capture_output=True, text=True, check=True,
+        ).stdout.strip()  # fmt: skip
+    except (OSError, subprocess.CalledProcessError):
+        return False
+    return out == "false"
+
+
+IN_GIT = _has_history()
 
 
 def _git(*args: str) -> str:
