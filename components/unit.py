@@ -173,6 +173,11 @@ class Unit:
         self.u[name] = value
         self.du[name] = (d1, d2)
 
+    def set_input_polynomials(self, rows: Mapping[str, tuple[float, float, float]]) -> None:
+        """:meth:`set_input_polynomial` for several inputs: ``{name: (value, d1, d2)}``."""
+        for name, (value, d1, d2) in rows.items():
+            self.set_input_polynomial(name, value, d1, d2)
+
     def input_at(self, name: str, t: float) -> float:
         """Value of an input at time ``t`` inside the current step (its polynomial)."""
         d = self.du.get(name)

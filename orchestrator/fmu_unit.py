@@ -105,17 +105,24 @@ class FmuUnit:
             raise FmuError(f"{self.name}.{name} is not a variable of {self.path.name}") from None
 
     def set_values(self, values: Mapping[str, Any]) -> None:
+        """Set ``values`` by name: one FMI call per type (the order within a type is the
+        mapping's)."""
+        groups: dict[str, tuple[list[int], list[Any]]] = {}
         for name, value in values.items():
             var = self._variable(name)
-            vr = [var.valueReference]
-            if var.type == "Real":
-                self._fmu.setReal(vr, [float(value)])
-            elif var.type in ("Integer", "Enumeration"):
-                self._fmu.setInteger(vr, [round(value)])
-            elif var.type == "Boolean":
-                self._fmu.setBoolean(vr, [bool(value)])
+            kind = "Integer" if var.type == "Enumeration" else var.type
+            refs, vals = groups.setdefault(kind, ([], []))
+            refs.append(var.valueReference)
+            vals.append(value)
+        for kind, (refs, vals) in groups.items():
+            if kind == "Real":
+                self._fmu.setReal(refs, [float(v) for v in vals])
+            elif kind == "Integer":
+                self._fmu.setInteger(refs, [round(v) for v in vals])
+            elif kind == "Boolean":
+                self._fmu.setBoolean(refs, [bool(v) for v in vals])
             else:
-                self._fmu.setString(vr, [str(value)])
+                self._fmu.setString(refs, [str(v) for v in vals])
 
     def get_values(self, names: list[str]) -> dict[str, Any]:
         """The values of ``names``: one FMI call per type, value references resolved once."""
@@ -163,6 +170,34 @@ class FmuUnit:
             [1, 2],
             [d1, d2],
         )
+
+    def set_input_polynomials(self, rows: Mapping[str, tuple[float, float, float]]) -> None:
+        """:meth:`set_input_polynomial` for several inputs ``{name: (value, d1, d2)}`` in
+        one fmi2SetReal and one fmi2SetRealInputDerivatives."""
+        refs: list[int] = []
+        orders: list[int] = []
+        derivs: list[float] = []
+        for name, (_, d1, d2) in rows.items():
+            var = self._variable(name)
+            if var.type != "Real":
+                if d1 or d2:
+                    raise FmuError(
+                        f"fmi2SetRealInputDerivatives {name}: {self.name}.{name} is an "
+                        f"{var.type} input; it has no derivatives"
+                    )
+                continue
+            refs += [var.valueReference, var.valueReference]
+            orders += [1, 2]
+            derivs += [d1, d2]
+        self._call("set inputs", self.set_values, {k: r[0] for k, r in rows.items()})
+        if refs:
+            self._call(
+                f"fmi2SetRealInputDerivatives {', '.join(rows)}",
+                self._fmu.setRealInputDerivatives,
+                refs,
+                orders,
+                derivs,
+            )
 
     def set_inputs(self, values: Mapping[str, float]) -> None:
         self._call("set inputs", self.set_values, values)

@@ -137,6 +137,9 @@ class IsolatedFmu:
     def set_input_polynomial(self, name: str, value: float, d1: float, d2: float) -> None:
         self._call("set_input_polynomial", name, value, d1, d2)
 
+    def set_input_polynomials(self, rows: Mapping[str, tuple[float, float, float]]) -> None:
+        self._call("set_input_polynomials", dict(rows))
+
     def set_inputs(self, values: Mapping[str, float]) -> None:
         self._call("set_inputs", dict(values))
 

@@ -137,10 +137,13 @@ class Master(EventSteps, Rollback):
                 if late and self.feedthrough[name]:
                     continue
                 unit = self.units[name]
+                values = {}
                 for c in self.targets_of[name]:
                     value = self._sum(c)
                     real[c.target] = value
-                    unit.set_input(c.input, value)
+                    values[c.input] = value
+                if values:  # one call per unit: one fmi2SetReal for an FMU
+                    unit.set_inputs(values)
                 if not late and not (fresh and not self.feedthrough[name]):
                     self.out[name] = unit.get_outputs()
         return real
@@ -169,24 +172,24 @@ class Master(EventSteps, Rollback):
         for name in self.order:
             unit = self.units[name]
             order = self.input_orders[name]
+            rows = {}  # input -> (value, d1, d2) at t: set in one call per unit
             for c in self.targets_of[name]:
                 end = ends.get(c.target) if ends is not None else None
                 if end is None and self.gauss_seidel and self.source_units[c.target] <= stepped:
                     end = self._sum(c)
                 v, d1, d2 = self._polynomial(c, t, h, end, order)
-                if order:
-                    unit.set_input_polynomial(c.input, v, d1, d2)
-                    given[c.target] = evaluate(v, d1, d2, h)
-                else:
-                    unit.set_input(c.input, v)
-                    given[c.target] = v
+                rows[c.input] = (v, d1, d2)
+                given[c.target] = evaluate(v, d1, d2, h) if order else v
+            if rows and order:
+                unit.set_input_polynomials(rows)
+            elif rows:
+                unit.set_inputs({k: r[0] for k, r in rows.items()})
             unit.do_step(t, h)
             self.counters["unit_steps"] += 1
             stepped.add(name)
-            if self.feedthrough[name]:
+            if self.feedthrough[name] and rows:
                 # its outputs at t + h follow its inputs there
-                for c in self.targets_of[name]:
-                    unit.set_input(c.input, given[c.target])
+                unit.set_inputs({c.input: given[c.target] for c in self.targets_of[name]})
             self.out[name] = unit.get_outputs()
         self.time = t + h
         real = self.settle(fresh=True)
