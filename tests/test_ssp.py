@@ -243,3 +243,11 @@ def test_a_broken_package_is_refused_naming_the_element(tmp_path, damage, messag
     (tmp_path / "junk.ssp").write_text("not a zip")
     with pytest.raises(ScenarioError, match="not an SSP package"):
         api.load(str(tmp_path / "junk.ssp"))
+
+
+def test_a_package_without_its_system_structure_is_refused_naming_it(tmp_path):
+    path = tmp_path / "empty.ssp"
+    with zipfile.ZipFile(path, "w") as zf:
+        zf.writestr("resources/readme.txt", "no SystemStructure.ssd here")
+    with pytest.raises(ScenarioError, match="no SystemStructure.ssd"):
+        api.load(str(path))
