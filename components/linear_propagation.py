@@ -77,18 +77,35 @@ def balance(M: np.ndarray, sweeps: int = 3) -> np.ndarray:
     """Scale factors ``d`` (powers of 2, so exact) such that ``M[i, j] d[j] / d[i]`` has
     rows and columns of similar norms (Parlett & Reinsch's balancing, all rows at once):
     a state in metres beside one in m/s would otherwise let the larger entries set the
-    exponential's round-off.  Vectorised, so an FMU's plain-numpy copy is cheap too."""
+    exponential's round-off.  Plain loops when compiled (no temporaries), vectorised in
+    an FMU's plain-numpy copy."""
     n = M.shape[0]
     d = np.ones(n)
-    absm = np.abs(M)
-    diag = np.diag(absm).copy()
+    if not USE_NUMBA:
+        absm = np.abs(M)
+        diag = np.diag(absm).copy()
+        for _ in range(sweeps):
+            B = absm * (d.reshape(1, n) / d.reshape(n, 1))
+            c = B.sum(axis=0) - diag
+            r = B.sum(axis=1) - diag
+            ok = (c > 0.0) & (r > 0.0)
+            ratio = np.where(ok, r, 1.0) / np.where(ok, c, 1.0)
+            d = d * np.exp2(np.floor(0.5 * np.log2(ratio) + 0.5))
+        return d
+    c = np.empty(n)
+    r = np.empty(n)
     for _ in range(sweeps):
-        B = absm * (d.reshape(1, n) / d.reshape(n, 1))
-        c = B.sum(axis=0) - diag
-        r = B.sum(axis=1) - diag
-        ok = (c > 0.0) & (r > 0.0)
-        ratio = np.where(ok, r, 1.0) / np.where(ok, c, 1.0)
-        d = d * np.exp2(np.floor(0.5 * np.log2(ratio) + 0.5))
+        c[:] = 0.0
+        r[:] = 0.0
+        for i in range(n):
+            for j in range(n):
+                if i != j:
+                    b = abs(M[i, j]) * (d[j] / d[i])
+                    c[j] += b
+                    r[i] += b
+        for i in range(n):
+            if c[i] > 0.0 and r[i] > 0.0:
+                d[i] *= 2.0 ** math.floor(0.5 * math.log2(r[i] / c[i]) + 0.5)
     return d
 
 
@@ -107,6 +124,44 @@ def _mm(A: np.ndarray, B: np.ndarray) -> np.ndarray:
                 for j in range(m):
                     C[i, j] += a * B[q, j]
     return C
+
+
+@njit(inline="always")
+def _solve(A: np.ndarray, B: np.ndarray) -> np.ndarray:
+    """A^-1 B: Gaussian elimination with partial pivoting in plain loops when compiled
+    (LAPACK's call overhead exceeds the work at these sizes), numpy's solve otherwise."""
+    if not USE_NUMBA:
+        return np.linalg.solve(A, B)
+    n, m = B.shape[0], B.shape[1]
+    A = A.copy()
+    X = B.copy()
+    for k in range(n):
+        piv = k
+        big = abs(A[k, k])
+        for i in range(k + 1, n):
+            if abs(A[i, k]) > big:
+                piv, big = i, abs(A[i, k])
+        if piv != k:
+            for j in range(n):
+                A[k, j], A[piv, j] = A[piv, j], A[k, j]
+            for j in range(m):
+                X[k, j], X[piv, j] = X[piv, j], X[k, j]
+        inv = 1.0 / A[k, k]
+        for i in range(k + 1, n):
+            f = A[i, k] * inv
+            if f != 0.0:
+                for j in range(k + 1, n):
+                    A[i, j] -= f * A[k, j]
+                for j in range(m):
+                    X[i, j] -= f * X[k, j]
+    for k in range(n - 1, -1, -1):
+        inv = 1.0 / A[k, k]
+        for j in range(m):
+            acc = X[k, j]
+            for i in range(k + 1, n):
+                acc -= A[k, i] * X[i, j]
+            X[k, j] = acc * inv
+    return X
 
 
 @njit
@@ -129,7 +184,7 @@ def expm(M: np.ndarray) -> np.ndarray:
                 U = U + b[2 * q + 1] * P
                 V = V + b[2 * q] * P
             U = _mm(X, U)
-            return np.linalg.solve(V - U, V + U).copy()
+            return _solve(V - U, V + U)
     s = 0
     if norm > THETA13:
         s = int(math.ceil(math.log2(norm / THETA13)))
@@ -142,7 +197,7 @@ def expm(M: np.ndarray) -> np.ndarray:
             + b[3] * X2 + b[1] * ident)  # fmt: skip
     V = _mm(X6, b[12] * X6 + b[10] * X4 + b[8] * X2) + b[6] * X6 + b[4] * X4 + b[2] * X2
     V = V + b[0] * ident
-    R = np.linalg.solve(V - U, V + U).copy()
+    R = _solve(V - U, V + U)
     for _ in range(s):
         R = _mm(R, R)
     return R
@@ -195,24 +250,50 @@ def exact_step(t0: float, h: float, y: np.ndarray, model, w: float, u: np.ndarra
     A, Bu, a, b, c = model
     n = y.shape[0]
     m = n + N_BASIS
-    G = Bu @ np.ascontiguousarray(u)  # n x 3: the inputs' value, d1, d2 as forces
     M = np.zeros((m, m))
-    M[:n, :n] = h * A
-    M[:n, n] = h * (a + G[:, 0])
-    M[:n, n + 1] = h * h * G[:, 1]
-    M[:n, n + 2] = h * h * h * G[:, 2]
-    M[:n, n + 3] = h * b
-    M[:n, n + 4] = h * c
+    if USE_NUMBA:  # plain loops: no temporaries, no BLAS call for a 4 x 2 product
+        for i in range(n):
+            g0, g1, g2 = 0.0, 0.0, 0.0
+            for k in range(Bu.shape[1]):
+                g0 += Bu[i, k] * u[k, 0]
+                g1 += Bu[i, k] * u[k, 1]
+                g2 += Bu[i, k] * u[k, 2]
+            for j in range(n):
+                M[i, j] = h * A[i, j]
+            M[i, n] = h * (a[i] + g0)
+            M[i, n + 1] = h * h * g1
+            M[i, n + 2] = h * h * h * g2
+            M[i, n + 3] = h * b[i]
+            M[i, n + 4] = h * c[i]
+    else:
+        G = Bu @ np.ascontiguousarray(u)  # n x 3: the inputs' value, d1, d2 as forces
+        M[:n, :n] = h * A
+        M[:n, n] = h * (a + G[:, 0])
+        M[:n, n + 1] = h * h * G[:, 1]
+        M[:n, n + 2] = h * h * h * G[:, 2]
+        M[:n, n + 3] = h * b
+        M[:n, n + 4] = h * c
     M[n + 1, n] = 1.0  # d sigma / d sigma = 1
     M[n + 2, n + 1] = 1.0  # d (sigma^2 / 2) / d sigma = sigma
     M[n + 3, n + 4] = -w * h  # d cos(w t) / d sigma = -w h sin(w t)
     M[n + 4, n + 3] = w * h
     d = balance(M)
-    E = expm(M * (d.reshape(1, m) / d.reshape(m, 1)))  # exp(M) = D E D^-1
     z = np.zeros(m)
     z[:n] = y
     z[n] = 1.0
     z[n + 3] = math.cos(w * t0)
     z[n + 4] = math.sin(w * t0)
-    out = d[:n] * (E[:n] @ (z / d))
+    if not USE_NUMBA:
+        E = expm(M * (d.reshape(1, m) / d.reshape(m, 1)))  # exp(M) = D E D^-1
+        return d[:n] * (E[:n] @ (z / d))
+    for i in range(m):  # the balanced matrix, in place
+        for j in range(m):
+            M[i, j] *= d[j] / d[i]
+    E = expm(M)
+    out = np.zeros(n)
+    for i in range(n):
+        acc = 0.0
+        for j in range(m):
+            acc += E[i, j] * (z[j] / d[j])
+        out[i] = d[i] * acc
     return out

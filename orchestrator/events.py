@@ -11,11 +11,12 @@ onto each trial time.
 
 from __future__ import annotations
 
-import math
 from collections.abc import Callable
 from dataclasses import dataclass
 
 from rubcosim.components.root_finding import F_CUR, X_CUR, advance, bracket, crossed_end
+
+from . import coupling_kernels as kernels
 
 
 @dataclass(frozen=True)
@@ -30,35 +31,11 @@ class Indicator:
     rate: str | None = None
 
 
-def _hermite_cubic(ga: float, ra: float, gb: float, rb: float, h: float):
-    """Coefficients (a, b, c, d) in theta = s/h of the cubic Hermite interpolant."""
-    return (
-        2.0 * (ga - gb) + h * (ra + rb),
-        3.0 * (gb - ga) - h * (2.0 * ra + rb),
-        h * ra,
-        ga,
-    )
-
-
 def hermite_extremum(ga: float, ra: float, gb: float, rb: float, h: float, direction: int):
     """Time offset and value of the interior extremum of the Hermite cubic that comes
     closest to crossing in ``direction`` (minimum for -1, maximum for +1), or None."""
-    a, b, c, d = _hermite_cubic(ga, ra, gb, rb, h)
-    roots: list[float] = []
-    if abs(a) > 1e-300:
-        disc = b * b - 3.0 * a * c
-        if disc >= 0.0:
-            sq = math.sqrt(disc)
-            roots = [(-b - sq) / (3.0 * a), (-b + sq) / (3.0 * a)]
-    elif abs(b) > 1e-300:
-        roots = [-c / (2.0 * b)]
-    best = None
-    for th in roots:
-        if 0.0 < th < 1.0:
-            value = ((a * th + b) * th + c) * th + d
-            if best is None or direction * value > direction * best[1]:
-                best = (th * h, value)
-    return best
+    found, offset, value = kernels.hermite_extremum(ga, ra, gb, rb, h, direction)
+    return (offset, value) if found else None
 
 
 def crossing(
@@ -73,23 +50,8 @@ def crossing(
     after an impact (``lo`` is then the extremum on the other side).  An interior
     end of the bracket is a prediction the caller must confirm.
     """
-    sign = -1.0 if ind.direction < 0 else 1.0
-    before_a = sign * ga < 0.0
-    if before_a and sign * gb >= 0.0:
-        return 0.0, h
-    if ind.rate is None:
-        return None
-    if before_a:
-        ext = hermite_extremum(ga, ra, gb, rb, h, ind.direction)
-        if ext is not None and sign * ext[1] >= 0.0:
-            return 0.0, ext[0]
-        return None
-    if sign * ra < 0.0 and sign * gb >= 0.0:
-        # starts on (or at) the crossed side moving back: back across and over again?
-        ext = hermite_extremum(ga, ra, gb, rb, h, -ind.direction)
-        if ext is not None and sign * ext[1] < 0.0:
-            return ext[0], h
-    return None
+    found, lo, hi = kernels.crossing_bracket(ind.direction, ind.rate is not None, ga, gb, h, ra, rb)
+    return (lo, hi) if found else None
 
 
 def predicted_to_cross(
@@ -97,11 +59,7 @@ def predicted_to_cross(
 ) -> bool:
     """Conservative test of whether the indicator could reach zero within ``h``,
     given its value, its rate and a bound on its second derivative."""
-    sign = -1.0 if ind.direction < 0 else 1.0
-    if sign * g >= 0.0:
-        return False
-    reach = sign * rate * h * safety + 0.5 * accel_bound * (h * safety) ** 2
-    return reach >= abs(g)
+    return kernels.predicted_to_cross(ind.direction, g, rate, accel_bound, h, safety)
 
 
 Probe = Callable[[float], tuple[float, float]]

@@ -14,6 +14,8 @@ from collections.abc import Sequence
 
 from rubcosim.components.kernels import polynomial_at
 
+from .coupling_kernels import polynomial3
+
 Point = tuple[float, float]  # (time, value)
 
 
@@ -22,17 +24,11 @@ def polynomial(points: Sequence[Point], t: float) -> tuple[float, float, float]:
     n = len(points)
     if n == 0:
         raise ValueError("no coupling value to build an input polynomial from")
-    if n == 1:
-        return points[0][1], 0.0, 0.0
-    (t0, u0), (t1, u1) = points[0], points[1]
-    f01 = (u1 - u0) / (t1 - t0)
-    if n == 2:
-        return u0 + f01 * (t - t0), f01, 0.0
-    t2, u2 = points[2]
-    f12 = (u2 - u1) / (t2 - t1)
-    f012 = (f12 - f01) / (t2 - t0)
-    value = u0 + (t - t0) * (f01 + f012 * (t - t1))
-    return value, f01 + f012 * (2.0 * t - t0 - t1), 2.0 * f012
+    (t0, u0) = points[0]
+    (t1, u1) = points[1] if n > 1 else (0.0, 0.0)
+    (t2, u2) = points[2] if n > 2 else (0.0, 0.0)
+    v, d1, d2 = polynomial3(n, t0, u0, t1, u1, t2, u2, t)
+    return float(v), float(d1), float(d2)
 
 
 def evaluate(value: float, d1: float, d2: float, s: float) -> float:

@@ -44,6 +44,8 @@ from rubcosim.progress import watch
 from .cosim_result import CosimError, CosimResult
 from .event_steps import EventSteps
 from .extrapolation import evaluate, polynomial
+from .flat_layout import CHECKPOINT_EVERY, STALL_STEPS
+from .flat_master import flat_unsupported, run_flat
 from .ordering import evaluation_order
 from .protocols import EventProtocol
 from .rollback import Rollback
@@ -51,9 +53,6 @@ from .settings import CosimSettings
 from .step_control import PIController
 
 __all__ = ["CosimError", "CosimResult", "Master", "evaluation_order"]
-
-CHECKPOINT_EVERY = 64
-STALL_STEPS = 1000  # accepted steps in a row at the minimum step before giving up
 
 
 class Master(EventSteps, Rollback):
@@ -237,6 +236,12 @@ class Master(EventSteps, Rollback):
         at ``output_times``; a failure ends the run early with ``status = "failed"``.
         ``progress``: a bar in simulated time on a terminal for runs of more than a couple
         of seconds."""
+        if self.settings.master != "python":
+            why = flat_unsupported(self)
+            if why is None:
+                return run_flat(self, t_start, t_end, output_times, list(record), progress)
+            if self.settings.master == "compiled":
+                raise CosimError(f"cosim.master = 'compiled': {why}; use 'auto' or 'python'")
         wall = time.perf_counter()
         st = self.settings
         self.time = float(t_start)

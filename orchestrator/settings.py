@@ -10,6 +10,7 @@ from typing import Any
 ALGORITHMS = ("gauss-seidel", "jacobi")
 EVENT_MODES = ("locate", "step", "off")
 BACKENDS = ("direct", "fmu")
+MASTERS = ("auto", "compiled", "python")
 UNIT_INTEGRATORS = ("exact", "dop853")
 
 
@@ -31,6 +32,9 @@ class CosimSettings:
 
     backend: str = "direct"  # "direct" (in-process units) or "fmu" (FMUs through fmpy)
     fmu_units: tuple[str, ...] = ()  # units run as FMUs whatever the backend (mixed runs)
+    # "compiled": the numba loop (in-process rotors, stators and bearings only); "python":
+    # the Python master (any unit, FMUs included); "auto": compiled where it can
+    master: str = "auto"
     isolate: bool = False  # every FMU in a worker process: a crash fails the run, not ours
     algorithm: str = "gauss-seidel"  # or "jacobi"
     extrapolation: int = 2  # polynomial order of the coupled inputs over a step: 0, 1, 2
@@ -105,6 +109,8 @@ def cosim_settings(raw: Mapping[str, Any]) -> CosimSettings:
     for key, value in raw.items():
         if key == "backend":
             v[key] = _choice(key, value, BACKENDS)
+        elif key == "master":
+            v[key] = _choice(key, value, MASTERS)
         elif key == "algorithm":
             v[key] = _choice(key, value, ALGORITHMS)
         elif key == "events":

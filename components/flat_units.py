@@ -1,0 +1,257 @@
+"""Unit steps and outputs over flat arrays, for the compiled co-simulation master.
+
+The compiled master (:mod:`rubcosim.orchestrator.flat_master`) keeps every unit as
+one row of a float array instead of a :class:`.unit.Unit` object, so that a
+whole macro step (and its rollback) runs without Python.  A row holds:
+
+* ``Y`` .. ``Y + 7``: the continuous state (rotor disc and journal, casing);
+* ``H``: the step size the unit's DOP853 integrator tries next;
+* ``IV``: the rotor's ``resets_applied`` counter;
+* ``T``: the unit's time (s);
+* ``U + 3 i`` .. ``U + 3 i + 2``: input ``i``'s value, first and second time
+  derivative at the step's start (in the order of the unit class's ``inputs``).
+
+:func:`do_step` and :func:`outputs` follow :meth:`.unit.Unit.do_step` and the unit
+classes' ``_advance`` / ``_outputs`` operation for operation, from the same
+physics kernels (:mod:`.rotor`, :mod:`.stator`, :mod:`.bearing`,
+:mod:`.linear_propagation`, :mod:`.stepping`), so the two masters agree to
+round-off; ``tests/test_flat_master.py`` holds them to 1e-12.  A unit type
+without a row form here (the controller with its delay history, the hybrid
+impact oscillators, FMUs) runs on the Python master.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from typing import Any
+
+import numpy as np
+
+from .bearing import linear_bearing_force, oilfilm_force
+from .bearing_unit import film_scale
+from .jit import njit
+from .linear_propagation import exact_step
+from .rotor import jeffcott_force, two_mass_disc_force
+from .stator import (
+    MODE_FREE,
+    MODE_SLIDE_NEG,
+    MODE_SLIDE_POS,
+    MODE_STICK,
+    constraint_normal_force,
+    contact_force_components,
+    contact_geometry,
+    friction_force,
+    friction_reserve,
+    penalty_contact_force,
+    rigid_impact,
+    slip_speed,
+    sticking_friction,
+)
+from .stator_unit import penalty_damping
+from .stepping import OK, advance
+from .unit_odes import CASING, CASING_P, JEFFCOTT, JEFFCOTT_P, TWO_MASS, TWO_MASS_P
+
+# row layout
+Y, H, IV, T, U = 0, 8, 9, 10, 11
+MAX_INPUTS = 7
+ROW = U + 3 * MAX_INPUTS
+MAX_OUTPUTS = 11
+MAX_PARAMS = 11
+
+# flat unit kinds
+K_JEFFCOTT, K_TWO_MASS, K_RIGID, K_ELASTIC, K_CASING, K_OILFILM, K_LINEAR = range(7)
+
+# what a step or an output evaluation can report
+STEP_OK = 0
+STEP_BAD_INPUT = 1  # an input is not finite
+STEP_FAILED = 2  # the integrator failed (step size below round-off, state not finite)
+STEP_NOT_FINITE = 3  # the state is not finite after the step
+OUT_NO_FILM = 4  # a journal outside the oil film: no bearing force
+OUT_BAD_MODE = 5  # a contact mode that is not 0, 1, 2 or 3
+OUT_NO_MASS = 6  # sustained contact without a disc mass
+
+RIGID_P = (
+    "x_offset",
+    "y_offset",
+    "restitution",
+    "friction",
+    "disc_radius",
+    "speed",
+    "clearance",
+    "disc_mass",
+    "constraint_rate",
+)
+OILFILM_P = ("speed", "clearance", "sigma")
+LINEAR_P = ("stiffness", "damping")
+
+# (role, type name) -> (flat kind, ODE kind of unit_odes or -1, parameter names, ODE inputs)
+FLAT_TYPES: dict[tuple[str, str], tuple[int, int, tuple[str, ...], tuple[str, ...]]] = {
+    ("rotor", "jeffcott"): (K_JEFFCOTT, JEFFCOTT, JEFFCOTT_P, ("fx", "fy")),
+    ("rotor", "two_mass"): (
+        K_TWO_MASS,
+        TWO_MASS,
+        TWO_MASS_P,
+        ("fx", "fy", "journal_fx", "journal_fy"),
+    ),
+    ("stator", "rigid"): (K_RIGID, -1, RIGID_P, ()),
+    ("stator", "elastic"): (K_ELASTIC, -1, CASING_P, ()),
+    ("stator", "casing"): (K_CASING, CASING, CASING_P, ("x", "y", "vx", "vy")),
+    ("bearing", "oilfilm"): (K_OILFILM, -1, OILFILM_P, ()),
+    ("bearing", "linear"): (K_LINEAR, -1, LINEAR_P, ()),
+}
+
+
+def flat_params(role: str, type_name: str, params: Mapping[str, Any]) -> np.ndarray:
+    """The parameter row of a unit (:data:`FLAT_TYPES` order, zero-padded): the unit's
+    parameters plus the quantities its class derives from them when it steps (the
+    penalty damping, the film's force scale)."""
+    names = FLAT_TYPES[(role, type_name)][2]
+    q = dict(params)
+    if type_name in ("elastic", "casing"):
+        q["contact_damping"] = penalty_damping(q)
+    if type_name == "oilfilm":
+        q["sigma"] = film_scale(q)
+    row = np.zeros(MAX_PARAMS)
+    for i, name in enumerate(names):
+        row[i] = float(q.get(name, 0.0))
+    return row
+
+
+@njit
+def _input_rows(st, idx, n):
+    u = np.zeros((n, 3))
+    for i in range(n):
+        j = U + 3 * idx[i]
+        u[i, 0] = st[j]
+        u[i, 1] = st[j + 1]
+        u[i, 2] = st[j + 2]
+    return u
+
+
+@njit
+def do_step(kind, ode_kind, exact, n_y, n_in, ode_idx, p, tol, model, st, t, h):
+    """Advance the unit in row ``st`` from ``t`` to ``t + h`` (s); on failure the row is
+    left as it was and the status (not :data:`STEP_OK`) says why.  ``model`` is the
+    rotor's affine model (:func:`.linear_propagation.affine_model`) when ``exact``."""
+    if not (math.isfinite(t) and math.isfinite(h)) or h < 0.0:
+        return STEP_BAD_INPUT
+    for i in range(n_in):
+        if not math.isfinite(st[U + 3 * i]):
+            return STEP_BAD_INPUT
+    if kind != K_JEFFCOTT and kind != K_TWO_MASS and kind != K_CASING:
+        st[T] = t + h  # no dynamics of its own
+        return STEP_OK
+    saved = st.copy()
+    st[T] = t
+    y = st[Y : Y + n_y].copy()
+    if kind != K_CASING:
+        # the rotor's velocity reset protocol (RESET_PROTOCOL of rotor_unit)
+        counter = float(int(st[U + 3 * 4]))
+        if counter != st[IV]:
+            y[2] = st[U + 3 * 2]
+            y[3] = st[U + 3 * 3]
+            st[IV] = counter
+    u = _input_rows(st, ode_idx, ode_idx.shape[0])
+    status = OK
+    if kind != K_CASING and exact:
+        if h > 0.0:
+            y = exact_step(t, h, y, model, p[4], u)
+    else:
+        h_next, _, _, status = advance(ode_kind, t, t + h, y, 0, st[H], p, u, tol[0], tol[1])
+        st[H] = h_next
+    bad = status != OK or not math.isfinite(st[H])
+    for i in range(n_y):
+        if not math.isfinite(y[i]):
+            bad = True
+    if bad:
+        st[:] = saved
+        return STEP_FAILED if status != OK else STEP_NOT_FINITE
+    st[Y : Y + n_y] = y
+    st[T] = t + h
+    return STEP_OK
+
+
+@njit
+def _penalty(st, p, cx, cy, cvx, cvy, out):
+    rx, ry = st[U] - cx, st[U + 3] - cy
+    rvx, rvy = st[U + 6] - cvx, st[U + 9] - cvy
+    fx, fy, fn = penalty_contact_force(rx, ry, rvx, rvy, p[0], p[1], p[2], p[3], p[4], p[5])
+    dist, nx, ny = contact_geometry(rx, ry)
+    gap = p[0] - dist
+    out[0], out[1], out[2] = fx, fy, fn
+    out[3], out[4] = gap, -(rvx * nx + rvy * ny)
+    out[5] = 1.0 if gap < 0.0 else 0.0
+
+
+@njit
+def _rigid(st, p, out):
+    rx, ry = st[U] - p[0], st[U + 3] - p[1]
+    rvx, rvy = st[U + 6] - 0.0, st[U + 9] - 0.0
+    dist, nx, ny = contact_geometry(rx, ry)
+    vx, vy = rigid_impact(rvx, rvy, nx, ny, p[2], p[3], p[4], p[5])
+    vn = rvx * nx + rvy * ny
+    out[0] = p[6] - dist
+    out[1] = -vn
+    out[2], out[3] = vx, vy
+    out[8] = slip_speed(rvx, rvy, nx, ny, p[4], p[5])
+    for k in (4, 5, 6, 7, 9, 10):
+        out[k] = 0.0
+    mode = int(st[U + 18])
+    if mode == MODE_FREE:
+        return STEP_OK
+    if mode != MODE_SLIDE_POS and mode != MODE_SLIDE_NEG and mode != MODE_STICK:
+        return OUT_BAD_MODE
+    m = p[7]
+    if m <= 0.0:
+        return OUT_NO_MASS
+    ofx, ofy = st[U + 12], st[U + 15]
+    vt = -rvx * ny + rvy * nx
+    n = constraint_normal_force(ofx, ofy, nx, ny, vt, vn, dist, p[6], m, p[8])
+    hold = sticking_friction(-ofx * ny + ofy * nx, 0.0, vt, vn, dist, m, math.inf)
+    ft = friction_force(mode, p[3], n, hold)
+    out[4], out[5] = contact_force_components(n, ft, nx, ny)
+    out[6] = n
+    out[7] = 2.0 if mode == MODE_STICK else 1.0
+    out[9] = friction_reserve(p[3], n, hold)
+    out[10] = hold
+    return STEP_OK
+
+
+@njit
+def outputs(kind, p, st, out):
+    """The outputs of the unit in row ``st`` at its time for its current input values,
+    in the order of the unit class's ``outputs``; returns a status."""
+    if kind == K_JEFFCOTT or kind == K_TWO_MASS:
+        t = st[T]
+        if kind == K_JEFFCOTT:
+            fx, fy = jeffcott_force(t, st[0], st[1], st[2], st[3], p[0], p[1], p[2], p[3],
+                                    p[4], p[5])  # fmt: skip
+        else:
+            fx, fy = two_mass_disc_force(t, st, 0, 4, p[0], p[1], p[2], p[6], p[3], p[4], p[5])
+            for i in range(4):
+                out[7 + i] = st[4 + i]
+        for i in range(4):
+            out[i] = st[i]
+        out[4] = st[IV]
+        out[5], out[6] = fx, fy
+        return STEP_OK
+    if kind == K_RIGID:
+        return _rigid(st, p, out)
+    if kind == K_ELASTIC:
+        _penalty(st, p, p[6], p[7], 0.0, 0.0, out)
+        return STEP_OK
+    if kind == K_CASING:
+        _penalty(st, p, p[6] + st[0], p[7] + st[1], st[2], st[3], out)
+        for i in range(4):
+            out[6 + i] = st[i]
+        return STEP_OK
+    if kind == K_OILFILM:
+        fx, fy = oilfilm_force(st[U], st[U + 3], st[U + 6], st[U + 9], p[0], p[1], p[2])
+        if not (math.isfinite(fx) and math.isfinite(fy)):
+            return OUT_NO_FILM
+        out[0], out[1] = fx, fy
+        return STEP_OK
+    fx, fy = linear_bearing_force(st[U], st[U + 3], st[U + 6], st[U + 9], p[0], p[1])
+    out[0], out[1] = fx, fy
+    return STEP_OK

@@ -1,0 +1,306 @@
+"""Events in the compiled master: indicators, crossings, location and the protocols.
+
+The compiled counterpart of :mod:`.event_steps` and :mod:`.protocols`: which
+indicators the protocols watch, whether a step may cross one, which crossing
+comes first, its location by re-running the step onto trial times (the one
+locator, :mod:`rubcosim.components.root_finding`), and what an event does (the
+rigid stator's impact, chattering end and contact modes through the shared
+kernels :func:`~rubcosim.components.stator.chattering_ended` and
+:func:`~rubcosim.components.stator.settle_mode`; a penalty stator's onset and
+release).  An indicator is a row ``(unit, output, direction, kind, rate output or
+-1, protocol)``.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from rubcosim.components.jit import njit
+from rubcosim.components.root_finding import F_CUR, X_CUR, advance, bracket, crossed_end
+from rubcosim.components.stator import (
+    MODE_FREE,
+    MODE_SLIDE_POS,
+    MODE_STICK,
+    chattering_ended,
+    settle_mode,
+)
+
+from .coupling_kernels import PI_ERR_START, crossing_bracket, predicted_to_cross
+from .flat_layout import (
+    EV_IMPACT,
+    EV_OFF,
+    EV_ON,
+    EV_RELEASE,
+    EV_SLIP,
+    EVENTS_OFF,
+    F_PERIOD,
+    F_T_TOL,
+    FAIL_EVENTS,
+    I_EVENTS,
+    I_MAX_EVENTS,
+    MS_ERR_PREV,
+    MS_N_EVENTS,
+    MS_RECENT,
+    MS_TIME,
+    N_EV0,
+    N_EVENTS,
+    N_PROBES,
+    PENALTY_GAP,
+    PENALTY_GAP_RATE,
+    PF_MIN_FLIGHT,
+    PF_V_CHAT,
+    PR_RIGID,
+    PS_COUNTER,
+    PS_LAST_IMPACT,
+    PS_MODE,
+    PS_SCALE,
+    RESET_COUNTER_INPUT,
+    RESET_VX_INPUT,
+    RESET_VY_INPUT,
+    RIGID_GAP,
+    RIGID_GAP_RATE,
+    RIGID_HOLD_FORCE,
+    RIGID_HOLD_MARGIN,
+    RIGID_MODE_INPUT,
+    RIGID_NORMAL,
+    RIGID_SLIP,
+    RIGID_VX_PLUS,
+    RIGID_VY_PLUS,
+)
+from .flat_round import fail, set_input, settle, step, unit_step
+
+MAX_INDICATORS = 8
+LOCATE_TRIALS = 60
+
+
+@njit
+def _add(inds, n, unit, output, direction, kind, rate, proto):
+    inds[n, 0], inds[n, 1], inds[n, 2] = unit, output, direction
+    inds[n, 3], inds[n, 4], inds[n, 5] = kind, rate, proto
+    return n + 1
+
+
+@njit
+def indicators(G, S, inds):
+    """Fill ``inds`` with the indicators the protocols watch now; returns how many."""
+    n = 0
+    if G.iset[I_EVENTS] == EVENTS_OFF:
+        return 0
+    for p in range(G.pr_kind.shape[0]):
+        s = G.pr_stator[p]
+        if G.pr_kind[p] == PR_RIGID:
+            mode = int(S.prs[p, PS_MODE])
+            if mode == MODE_FREE:
+                n = _add(inds, n, s, RIGID_GAP, -1, EV_IMPACT, RIGID_GAP_RATE, p)
+                continue
+            n = _add(inds, n, s, RIGID_NORMAL, -1, EV_RELEASE, -1, p)
+            if mode == MODE_STICK:
+                n = _add(inds, n, s, RIGID_HOLD_MARGIN, -1, EV_SLIP, -1, p)
+            else:
+                d = -1 if mode == MODE_SLIDE_POS else 1
+                n = _add(inds, n, s, RIGID_SLIP, d, EV_SLIP, -1, p)
+        elif S.out[s, PENALTY_GAP] > 0.0:
+            n = _add(inds, n, s, PENALTY_GAP, -1, EV_ON, PENALTY_GAP_RATE, p)
+        else:
+            n = _add(inds, n, s, PENALTY_GAP, 1, EV_OFF, PENALTY_GAP_RATE, p)
+    return n
+
+
+@njit
+def value(S, ind):
+    g = S.out[ind[0], ind[1]]
+    r = S.out[ind[0], ind[4]] if ind[4] >= 0 else 0.0
+    return g, r
+
+
+@njit
+def may_cross(S, inds, n, h):
+    for i in range(n):
+        if inds[i, 4] < 0:
+            return True  # no rate to predict from: always be ready to roll back
+        g, r = value(S, inds[i])
+        a = S.acc[inds[i, 0], inds[i, 1]]
+        if math.isnan(a) or predicted_to_cross(inds[i, 2], g, r, a, h):
+            return True
+    return False
+
+
+@njit
+def learn_rates(S, inds, n, bef, h):
+    """Running bound on the second derivative of every indicator that has a rate."""
+    for i in range(n):
+        if inds[i, 4] < 0:
+            continue
+        r1 = S.out[inds[i, 0], inds[i, 4]]
+        a = S.acc[inds[i, 0], inds[i, 1]]
+        S.acc[inds[i, 0], inds[i, 1]] = max(0.0 if math.isnan(a) else a, abs(r1 - bef[i, 1]) / h)
+
+
+@njit
+def first_crossing(S, inds, n, bef, h):
+    """``(index, lo, hi)`` of the indicator whose crossing in the step comes first
+    (index -1: none)."""
+    best, best_est, best_lo, best_hi = -1, 0.0, 0.0, 0.0
+    for i in range(n):
+        ga, ra = bef[i, 0], bef[i, 1]
+        gb, rb = value(S, inds[i])
+        found, lo, hi = crossing_bracket(inds[i, 2], inds[i, 4] >= 0, ga, gb, h, ra, rb)
+        if not found:
+            continue
+        if lo > 0.0:
+            est = lo
+        else:
+            est = hi * ga / (ga - gb) if ga != gb else hi
+        if best < 0 or est < best_est:
+            best, best_est, best_lo, best_hi = i, est, lo, hi
+    return best, best_lo, best_hi
+
+
+@njit
+def _probe(G, S, ind, t, tq, last):
+    S.ust[:] = S.snap
+    status, _ = step(G, S, t, tq - t)
+    last[0] = tq
+    S.cnt[N_PROBES] += 1
+    g, r = value(S, ind)
+    return status, g, r
+
+
+@njit
+def locate(G, S, ind, bef_i, t, h, lo, hi):
+    """Cut the step at the first crossing (``_locate``): ``(status, confirmed, new h)``
+    with the units at ``t + new h``; not confirmed when a predicted interior crossing
+    is not there after all."""
+    last = np.array([np.nan])
+    sign = -1.0 if ind[2] < 0 else 1.0
+    ga, ra = bef_i[0], bef_i[1]
+    gb, rb = value(S, ind)
+    if lo > 0.0:
+        status, ga, ra = _probe(G, S, ind, t, t + lo, last)
+        if status:
+            return status, False, h
+        if sign * ga >= 0.0:
+            return 0, False, h
+    if hi < h:
+        status, gb, rb = _probe(G, S, ind, t, t + hi, last)
+        if status:
+            return status, False, h
+        if sign * gb < 0.0:
+            return 0, False, h
+    ta, tb = t + lo, t + hi
+    t_tol = G.fset[F_T_TOL]
+    if ind[4] >= 0 and sign * gb >= 0.0 and rb != 0.0 and abs(gb / rb) <= t_tol:
+        t_ev = tb  # the end of the step is within the tolerance of the crossing
+    else:
+        s = bracket(ta, -sign * ga, tb, -sign * gb, t_tol)
+        trials = 0
+        while trials < LOCATE_TRIALS and not advance(s):
+            status, g, _ = _probe(G, S, ind, t, s[X_CUR], last)
+            if status:
+                return status, False, h
+            trials += 1
+            s[F_CUR] = -sign * g
+        t_ev = crossed_end(s)
+    if last[0] != t_ev:
+        status, _, _ = _probe(G, S, ind, t, t_ev, last)
+        if status:
+            return status, False, h
+    return 0, True, t_ev - t
+
+
+@njit
+def _set_mode(G, S, p, mode):
+    S.prs[p, PS_MODE] = mode
+    set_input(S, G.pr_stator[p], RIGID_MODE_INPUT, float(mode))
+    return settle(G, S, False, S.scratch)
+
+
+@njit
+def _settle_contact(G, S, p, slipping_from):
+    """Sliding with the sign of the slip, sticking when friction holds it, free when
+    nothing presses the disc on (``RigidContact._settle_contact``)."""
+    s = G.pr_stator[p]
+    if slipping_from == MODE_FREE and _set_mode(G, S, p, MODE_STICK):
+        return 1
+    threshold = G.pr_f[p, PF_V_CHAT] if slipping_from == MODE_FREE else math.inf
+    mode = settle_mode(S.out[s, RIGID_SLIP], threshold, S.out[s, RIGID_HOLD_MARGIN],
+                       S.out[s, RIGID_HOLD_FORCE], slipping_from)  # fmt: skip
+    if mode != int(S.prs[p, PS_MODE]) and _set_mode(G, S, p, mode):
+        return 1
+    if S.out[s, RIGID_NORMAL] <= 0.0:
+        return _set_mode(G, S, p, MODE_FREE)
+    return 0
+
+
+@njit
+def _impact(G, S, p):
+    s, r = G.pr_stator[p], G.pr_rotor[p]
+    S.prs[p, PS_COUNTER] += 1.0
+    set_input(S, r, RESET_VX_INPUT, S.out[s, RIGID_VX_PLUS])
+    set_input(S, r, RESET_VY_INPUT, S.out[s, RIGID_VY_PLUS])
+    set_input(S, r, RESET_COUNTER_INPUT, S.prs[p, PS_COUNTER])
+    time = S.ms[MS_TIME]
+    if unit_step(G, S, r, time, 0.0) or settle(G, S, False, S.scratch):
+        return 1
+    flight = time - S.prs[p, PS_LAST_IMPACT]
+    S.prs[p, PS_LAST_IMPACT] = time
+    rebound = S.out[s, RIGID_GAP_RATE]
+    if chattering_ended(rebound, G.pr_f[p, PF_V_CHAT], flight, G.pr_f[p, PF_MIN_FLIGHT]):
+        return _settle_contact(G, S, p, MODE_FREE)
+    return 0
+
+
+@njit
+def overdue(G, S, p):
+    """A rigid impact the locator could not resolve (the disc inside the stator, still
+    approaching), to be applied now: True (``RigidContact.overdue``)."""
+    if G.pr_kind[p] != PR_RIGID:
+        return False
+    s = G.pr_stator[p]
+    gap = S.out[s, RIGID_GAP]
+    S.prs[p, PS_SCALE] = max(S.prs[p, PS_SCALE], abs(gap))
+    return (
+        int(S.prs[p, PS_MODE]) == MODE_FREE
+        and gap < -1e-9 * S.prs[p, PS_SCALE]
+        and S.out[s, RIGID_GAP_RATE] < 0.0
+    )
+
+
+@njit
+def event(G, S, kind, p):
+    """Handle an event of ``kind`` from protocol ``p`` (``_event``): the protocol acts,
+    the event is recorded, the inputs settle and the extrapolation restarts."""
+    status = 0
+    if G.pr_kind[p] == PR_RIGID:
+        if kind == EV_IMPACT:
+            status = _impact(G, S, p)
+        elif kind == EV_RELEASE:
+            status = _set_mode(G, S, p, MODE_FREE)
+        else:
+            status = _settle_contact(G, S, p, int(S.prs[p, PS_MODE]))
+    if status:
+        return 1
+    n = int(S.ms[MS_N_EVENTS])
+    time = S.ms[MS_TIME]
+    S.ev_t[n] = time
+    S.ev_kind[n] = kind
+    S.ev_unit[n] = G.pr_stator[p]
+    S.ms[MS_N_EVENTS] = n + 1
+    S.cnt[N_EVENTS] += 1
+    S.cnt[N_EV0 + kind] += 1
+    if settle(G, S, False, S.scratch):
+        return 1
+    for c in range(S.hist.shape[0]):
+        S.hist[c, 0] = 1.0
+        S.hist[c, 1] = time
+        S.hist[c, 2] = S.scratch[c]
+    S.ms[MS_ERR_PREV] = PI_ERR_START
+    first = int(S.ms[MS_RECENT])
+    while first <= n and S.ev_t[first] < time - G.fset[F_PERIOD]:
+        first += 1
+    S.ms[MS_RECENT] = first
+    if n + 1 - first > G.iset[I_MAX_EVENTS]:
+        return fail(S, FAIL_EVENTS, G.pr_stator[p], 0)
+    return 0

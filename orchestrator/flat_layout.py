@@ -1,0 +1,81 @@
+"""The compiled master's data: a coupled graph and its run state as flat arrays.
+
+:class:`FlatGraph` (``G``) is what does not change during a run: the units' kinds,
+parameters and orders, the connections (CSR lists of their sources), the event
+protocols, what to record and the settings.  :class:`FlatState` (``S``) is
+everything that does: the unit rows (:mod:`rubcosim.components.flat_units`), the
+master's copy of the outputs, the input histories, the scales, the indicators'
+acceleration bounds, the protocols' states, the counters, the recorded rows and
+events, the snapshot and the checkpoint.  Slot and code constants are named here
+once for the kernels and the Python driver (:mod:`.flat_master`).
+"""
+
+from __future__ import annotations
+
+from collections import namedtuple
+
+FlatGraph = namedtuple(
+    "FlatGraph",
+    [
+        "kind", "ode", "exact", "ny", "nin", "nout", "ode_idx", "node", "p", "tol", "feed",
+        "in_order", "order", "eval_order", "c_input", "src0", "src_unit", "src_out", "c_gs",
+        "conn0", "conns", "nominal", "bound", "pr_kind", "pr_stator", "pr_rotor", "pr_f",
+        "rec_unit", "rec_out", "out_times", "model", "iset", "fset",
+    ],
+)  # fmt: skip
+
+FlatState = namedtuple(
+    "FlatState",
+    [
+        "ust", "out", "hist", "scale", "acc", "prs", "ms", "cnt", "given", "real", "scratch",
+        "rows", "ev_t", "ev_kind", "ev_unit", "snap", "ck_ust", "ck_out", "ck_hist",
+        "ck_scale", "ck_acc", "ck_prs", "ck_ms", "info", "finfo",
+    ],
+)  # fmt: skip
+
+# integer settings (G.iset)
+I_GS, I_ADAPTIVE, I_ITERATIONS, I_EVENTS, I_MAX_EVENTS, I_PI_ORDER = range(6)
+EVENTS_LOCATE, EVENTS_STEP, EVENTS_OFF = 0, 1, 2
+# float settings (G.fset)
+F_RTOL, F_ITER_TOL, F_MIN_STEP, F_MAX_STEP, F_T_TOL, F_PERIOD, F_T_END = range(7)
+# master scalars (S.ms); the first MS_SAVED are what a checkpoint restores
+MS_TIME, MS_H, MS_ERR_PREV, MS_K_OUT, MS_N_EVENTS, MS_RECENT = range(6)
+MS_SAVED = 6
+MS_SINCE_CHECKPOINT, MS_SNAP_UNTIL, MS_AT_FLOOR, MS_STARTED = range(6, 10)
+MS_SIZE = 10
+
+# counters (S.cnt), named as the Python master's
+COUNTERS = (
+    "steps", "unit_steps", "snapshots", "rejected", "replays", "event_probes", "accepted",
+    "iterations", "events", "late_events", "events_impact", "events_release", "events_slip",
+    "events_contact_on", "events_contact_off",
+)  # fmt: skip
+(
+    N_STEPS, N_UNIT_STEPS, N_SNAPSHOTS, N_REJECTED, N_REPLAYS, N_PROBES, N_ACCEPTED,
+    N_ITERATIONS, N_EVENTS, N_LATE, N_EV0,
+) = range(11)  # fmt: skip
+
+# event kinds (N_EV0 + kind is the kind's counter)
+EVENT_KINDS = ("impact", "release", "slip", "contact_on", "contact_off")
+EV_IMPACT, EV_RELEASE, EV_SLIP, EV_ON, EV_OFF = range(5)
+
+# protocols
+PR_RIGID, PR_ELASTIC = 0, 1
+PS_MODE, PS_COUNTER, PS_LAST_IMPACT, PS_SCALE = range(4)  # S.prs columns
+PF_V_CHAT, PF_MIN_FLIGHT = 0, 1  # G.pr_f columns
+# stator output slots the protocols read (order of the unit classes' outputs)
+RIGID_GAP, RIGID_GAP_RATE, RIGID_VX_PLUS, RIGID_VY_PLUS = 0, 1, 2, 3
+RIGID_NORMAL, RIGID_SLIP, RIGID_HOLD_MARGIN, RIGID_HOLD_FORCE = 6, 8, 9, 10
+PENALTY_GAP, PENALTY_GAP_RATE = 3, 4
+RIGID_MODE_INPUT = 6  # the rigid stator's contact_mode
+RESET_VX_INPUT, RESET_VY_INPUT, RESET_COUNTER_INPUT = 2, 3, 4  # the rotor's
+
+# how a run ends or pauses (what the loop returns), and why it failed (S.info)
+RUNNING, DONE, PAUSED, NEED_ROOM, FAILED = range(5)
+INFO_CODE, INFO_UNIT, INFO_DETAIL = range(3)
+FAIL_STEP, FAIL_OUTPUT, FAIL_MACRO_STEP, FAIL_STALL, FAIL_NOT_FINITE, FAIL_UNSTABLE = range(1, 7)
+FAIL_EVENTS = 7
+FI_H, FI_TIME, FI_VALUE = range(3)  # S.finfo slots
+
+CHECKPOINT_EVERY = 64
+STALL_STEPS = 1000
