@@ -48,7 +48,7 @@ BENCHMARKS = (
     Benchmark("basins_feng_yang", ("bench_basins.py", "--repeats", "3"), ANALYSES),
     Benchmark("lyapunov_feng_yang", ("study_lyapunov.py",), ANALYSES),
     Benchmark("cosim_wp", ("bench_cosim.py",), COSIM),
-    Benchmark("stress", ("stress_cosim.py",), COSIM),
+    Benchmark("stress", ("stress_cosim.py", "--long"), COSIM),
     Benchmark("isolation", ("bench_isolation.py",), COSIM),
     Benchmark("fmu_step", ("bench_fmu_step.py",), COSIM),
 )
