@@ -19,7 +19,7 @@ $(STAMP): pyproject.toml
 # Compile the numba kernels into the cache once (make run does it; the tests compile
 # what they use themselves, in their two workers).
 WARM := $(VENV)/.warm-stamp
-$(WARM): $(STAMP) $(wildcard components/*.py rubcosim/reference/*.py)
+$(WARM): $(STAMP) $(wildcard components/*.py rubcosim/reference/*.py orchestrator/*.py)
 	@echo "compiling the numba kernels into the cache once (rubcosim warm-up)"
 	$(VENV)/bin/rubcosim warm-up
 	touch $(WARM)
