@@ -8,6 +8,13 @@ exponential of :mod:`rubcosim.components.linear_propagation`; ``dop853``: the un
 DOP853, plain Python inside the FMU) is timed over ``--steps`` steps, ``--repeats``
 times; the median per step is reported with its min-max over the repeats.
 
+Then the cost of each FMI call a master makes on a macro step, through the same
+fmpy instances: ``fmi2SetReal`` of the two force inputs, ``fmi2SetRealInputDerivatives``
+of their first and second derivatives, ``fmi2DoStep`` of zero length (the call without
+integration), ``fmi2GetReal`` of every output, and the rollback calls
+``fmi2GetFMUstate``, ``fmi2SetFMUstate`` and ``fmi2FreeFMUstate``, for the Jeffcott
+rotor (exact) and the rigid stator; each call ``--calls`` times, median over the repeats.
+
 Run from the repository root::
 
     .venv/bin/python benchmarks/bench_fmu_step.py [--steps 2000] [--repeats 5]
@@ -35,6 +42,19 @@ ROTORS = {
     "RubcosimTwoMassRotor": {"eccentricity": 5e-5, "damping": 316.2, "shaft_damping": 50.0},
 }
 SPEED = 379.473319  # rad/s: the FMUs' default speed
+CALL_FMUS = {
+    "RubcosimJeffcottRotor": ({"eccentricity": 5e-5, "damping": 316.2}, ("fx", "fy")),
+    "RubcosimRigidStator": ({"clearance": 1e-4, "restitution": 0.8}, ("x", "y")),
+}
+CALLS = (
+    "fmi2SetReal",
+    "fmi2SetRealInputDerivatives",
+    "fmi2DoStep (h = 0)",
+    "fmi2GetReal (all outputs)",
+    "fmi2GetFMUstate",
+    "fmi2SetFMUstate",
+    "fmi2FreeFMUstate",
+)
 DERIVATIVES = ("fx_d1", "fx_d2", "fy_d1", "fy_d2")
 
 
@@ -74,16 +94,68 @@ def time_fmu(path: Path, params: dict[str, float], integrator: str, steps: int) 
     return wall / steps
 
 
+def time_calls(path: Path, params: dict[str, float], inputs: tuple[str, ...], n: int):
+    """Seconds per call of each of :data:`CALLS` on one instance, ``n`` calls each."""
+    from rubcosim.orchestrator.fmu_unit import FmuUnit
+
+    unit = FmuUnit(path, name="bench", params=params)
+    fmu = unit._fmu
+    refs = [unit.variables[k].valueReference for k in inputs]
+    out_refs = [unit.variables[k].valueReference for k in unit.outputs
+                if unit.variables[k].type == "Real"]  # fmt: skip
+    drefs, orders = [r for r in refs for _ in (1, 2)], [o for _ in refs for o in (1, 2)]
+    dvals = [1.0] * len(drefs)
+    vals = [0.0] * len(refs)
+    state = fmu.getFMUState()
+    states = []
+
+    def free() -> None:
+        fmu.freeFMUState(states.pop())
+
+    calls = {
+        "fmi2SetReal": lambda: fmu.setReal(refs, vals),
+        "fmi2SetRealInputDerivatives": lambda: fmu.setRealInputDerivatives(drefs, orders, dvals),
+        "fmi2DoStep (h = 0)": lambda: fmu.doStep(0.0, 0.0),
+        "fmi2GetReal (all outputs)": lambda: fmu.getReal(out_refs),
+        "fmi2GetFMUstate": lambda: states.append(fmu.getFMUState()),
+        "fmi2SetFMUstate": lambda: fmu.setFMUState(state),
+        "fmi2FreeFMUstate": free,
+    }
+    cost = {}
+    for name in CALLS:
+        call = calls[name]
+        start = time.perf_counter()
+        for _ in range(n):
+            call()
+        cost[name] = (time.perf_counter() - start) / n
+    for s in states:
+        fmu.freeFMUState(s)
+    fmu.freeFMUState(state)
+    unit.close()
+    return cost
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n", 1)[0])
     parser.add_argument("--steps", type=int, default=2000)
     parser.add_argument("--repeats", type=int, default=5)
+    parser.add_argument("--calls", type=int, default=2000, help="calls of each FMI function")
     parser.add_argument("--out", type=Path, default=RESULTS)
     args = parser.parse_args(argv)
-    if args.steps < 1 or args.repeats < 1:
-        parser.error("--steps and --repeats must be >= 1")
+    if args.steps < 1 or args.repeats < 1 or args.calls < 1:
+        parser.error("--steps, --repeats and --calls must be >= 1")
     with tempfile.TemporaryDirectory(prefix="bench_fmu_step_") as tmp:
-        built = {p.stem: p for p in build_fmus(tmp, only=list(ROTORS))}
+        built = {p.stem: p for p in build_fmus(tmp, only=[*ROTORS, *CALL_FMUS])}
+        per_call = []
+        for name, (params, inputs) in CALL_FMUS.items():
+            time_calls(built[name], params, inputs, 50)  # load, first calls
+            runs = [time_calls(built[name], params, inputs, args.calls)
+                    for _ in range(args.repeats)]  # fmt: skip
+            for call in CALLS:
+                times = [r[call] for r in runs]
+                per_call.append({"fmu": name, "call": call, "median_s": statistics.median(times),
+                                 "runs_s": times})  # fmt: skip
+                print(f"{name:24s} {call:30s} {statistics.median(times) * 1e6:8.1f} us/call")
         rows = []
         for name, params in ROTORS.items():
             for integrator in ("exact", "dop853"):
@@ -101,9 +173,10 @@ def main(argv: list[str] | None = None) -> int:
                     }  # fmt: skip
                 )
                 print(f"{name:24s} {integrator:7s} {statistics.median(runs) * 1e6:8.1f} us/step")
-    meta = stamp(steps=args.steps, repeats=args.repeats, step="T/400")
+    meta = stamp(steps=args.steps, repeats=args.repeats, step="T/400", calls=args.calls)
     args.out.mkdir(parents=True, exist_ok=True)
-    (args.out / "fmu_step.json").write_text(json.dumps({"meta": meta, "rows": rows}, indent=1))
+    data = {"meta": meta, "rows": rows, "per_call": per_call}
+    (args.out / "fmu_step.json").write_text(json.dumps(data, indent=1))
     lines = [
         "# Rotor FMUs: cost of one fmi2DoStep",
         "",
@@ -120,6 +193,19 @@ def main(argv: list[str] | None = None) -> int:
         "",
         f"Through fmpy, steps of T/400 with changing inputs and input derivatives; median "
         f"over {args.repeats} runs of {args.steps} steps. " + stamp_line(meta),
+        "",
+        "| FMU | FMI call | per call, median | min - max |",
+        "|---|---|---:|---:|",
+    ]
+    for r in per_call:
+        lo, hi = min(r["runs_s"]) * 1e6, max(r["runs_s"]) * 1e6
+        lines.append(
+            f"| {r['fmu']} | {r['call']} | {r['median_s'] * 1e6:.1f} us | {lo:.1f} - {hi:.1f} us |"
+        )
+    lines += [
+        "",
+        f"Each call {args.calls} times on one instance through fmpy (a zero-length "
+        f"fmi2DoStep is the call without integration); median over {args.repeats} runs.",
     ]
     (args.out / "fmu_step.md").write_text("\n".join(lines) + "\n")
     return 0

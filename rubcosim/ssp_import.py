@@ -29,18 +29,22 @@ NS = {"ssd": SSD, "ssc": SSC, "ssv": SSV}
 TYPED = {"Real": float, "Integer": int, "Boolean": lambda v: v == "true", "String": str}
 
 
-def _describe(fmu: Path) -> tuple[str, dict[str, Any]]:
-    """The FMU's model identifier and the start values of its parameters."""
+def _describe(fmu: Path) -> tuple[str, dict[str, Any], dict[str, list[str]]]:
+    """The FMU's model identifier, the start values of its parameters and the names of
+    its inputs and outputs (the connectors a connection may name)."""
     from fmpy import read_model_description
 
     md = read_model_description(str(fmu), validate=False)
     if md.coSimulation is None:
         raise ScenarioError(f"{fmu.name}: not a co-simulation FMU")
     starts = {}
+    connectors: dict[str, list[str]] = {"input": [], "output": []}
     for v in md.modelVariables:
         if v.causality == "parameter" and v.start is not None:
             starts[v.name] = TYPED.get(v.type, str)(v.start)
-    return md.coSimulation.modelIdentifier, starts
+        if v.causality in connectors:
+            connectors[v.causality].append(v.name)
+    return md.coSimulation.modelIdentifier, starts, connectors
 
 
 def _bindings(comp: ET.Element) -> dict[str, Any]:
@@ -86,6 +90,7 @@ def scenario_table(path: str | Path) -> dict[str, Any]:
     units: dict[str, dict[str, Any]] = {}
     fmus: dict[str, dict[str, Any]] = {}
     names: dict[str, str] = {}
+    connectors: dict[str, dict[str, list[str]]] = {}
     for comp in system.findall("ssd:Elements/ssd:Component", NS):
         name, source = comp.get("name"), comp.get("source")
         where = f"SystemStructure.ssd: Component {name!r}"
@@ -95,7 +100,7 @@ def scenario_table(path: str | Path) -> dict[str, Any]:
         if not fmu.is_file():
             raise ScenarioError(f"{where}: its source {source} is not in the package")
         values = _bindings(comp)
-        identifier, starts = _describe(fmu)
+        identifier, starts, connectors[name] = _describe(fmu)
         utype = ours.get(identifier)
         if utype is None:
             names[name] = name
@@ -118,6 +123,17 @@ def scenario_table(path: str | Path) -> dict[str, Any]:
                 f"SystemStructure.ssd: Connection {start}.{c.get('startConnector')} -> "
                 f"{end}.{c.get('endConnector')} names a component the system does not have"
             )
+        for element, connector, causality in (
+            (start, c.get("startConnector"), "output"),
+            (end, c.get("endConnector"), "input"),
+        ):
+            if connector not in connectors[element][causality]:
+                known = ", ".join(connectors[element][causality]) or "none"
+                raise ScenarioError(
+                    f"SystemStructure.ssd: Connection {start}.{c.get('startConnector')} -> "
+                    f"{end}.{c.get('endConnector')}: {element} has no {causality} "
+                    f"{connector!r} (its {causality}s: {known})"
+                )
         target = f"{names[end]}.{c.get('endConnector')}"
         connections.setdefault(target, []).append(f"{names[start]}.{c.get('startConnector')}")
     for target, _ in REGISTRY.default_wiring({r: u["type"] for r, u in units.items()}):

@@ -231,6 +231,14 @@ def test_a_package_written_by_hand_wires_a_c_fmu_to_ours(tmp_path, capsys):
     [
         (lambda s: s.replace('endElement="disc"', 'endElement="shaft"'), "names a component"),
         (
+            lambda s: s.replace('endConnector="fy"', 'endConnector="fz"'),
+            r"disc has no input 'fz' \(its inputs: .*fy",
+        ),
+        (
+            lambda s: s.replace('startConnector="h"', 'startConnector="hh"'),
+            r"ball has no output 'hh' \(its outputs: h, v",
+        ),
+        (
             lambda s: s.replace("resources/bouncing_ball.fmu", "resources/missing.fmu"),
             "is not in the package",
         ),  # fmt: skip
