@@ -30,6 +30,7 @@ class CosimResult:
     wall_time_s: float
     settings: CosimSettings
     input_orders: dict[str, int] = field(default_factory=dict)
+    master: str = "python"  # which master ran: "compiled" or "python" (cosim.master)
 
     @property
     def ok(self) -> bool:

@@ -267,4 +267,5 @@ def run_flat(
         wall_time_s=time.perf_counter() - wall,
         settings=master.settings,
         input_orders=dict(master.input_orders),
+        master="compiled",
     )

@@ -306,7 +306,8 @@ def cmd_check(args: argparse.Namespace) -> int:
     report, co = checked.report, checked.cosim
     wall = report["wall_time_s"]
     print(
-        f"{scenario.name}: co-simulation ({co.settings.backend}) vs reference: worst relative "
+        f"{scenario.name}: co-simulation ({co.settings.backend}, {co.master} master) vs "
+        f"reference: worst relative "
         f"error {report['worst_rel_error']:.3g}, impacts {report['impacts']['cosim']} vs "
         f"{report['impacts']['reference']}, {wall['cosim']:.3f} s vs {wall['reference']:.3f} s, "
         f"{co.counters.get('steps', 0)} steps ({co.counters.get('rejected', 0)} rejected) -> {out}"
@@ -330,7 +331,7 @@ def cmd_run(args: argparse.Namespace) -> int:
             f"{c.get('accepted', 0)} steps, {c.get('rejected', 0)} rejected, "
             f"{c.get('snapshots', 0)} snapshots"
         )
-        engine, failure = res.engine, "co-simulation"
+        engine, failure = f"{res.engine} ({res.run.result.master} master)", "co-simulation"
     else:
         res = api.simulate(scenario, args.engine, progress=not args.no_progress)
         c = res.counters

@@ -88,6 +88,7 @@ def compare(
             k: (list(v) if isinstance(v, tuple) else v) for k, v in vars(co.settings).items()
         },
         "input_orders": co.input_orders,
+        "master": co.master,
         "outputs": outputs,
         "worst_rel_error": max((o["max_rel_error"] for o in outputs.values()), default=0.0),
         "impacts": {"reference": int(ref_impacts.size), "cosim": impact_count(scenario, co)},

@@ -91,6 +91,7 @@ def cosim_report(run: CosimRun) -> dict[str, Any]:
         "description": sc.description,
         "source": sc.source,
         "engine": r.engine,
+        "master": r.master,
         "status": r.status,
         "message": r.message,
         "t_start": sc.sim["t_start"],

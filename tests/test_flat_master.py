@@ -55,6 +55,7 @@ def _both(name: str, t_end: float, settings: dict):
 def test_compiled_master_equals_the_python_master(name, t_end, settings):
     python, compiled = _both(name, t_end, settings)
     assert python.ok and compiled.ok, (python.message, compiled.message)
+    assert (python.master, compiled.master) == ("python", "compiled")
     assert compiled.counters == python.counters
     assert compiled.event_kind == python.event_kind
     assert compiled.event_unit == python.event_unit
@@ -84,5 +85,6 @@ def test_the_master_setting_is_validated_and_compiled_names_what_it_cannot_run()
     sc = load_scenario(SCENARIOS / "jeffcott_delayed_feedback.toml", ["sim.t_end=0.002"])
     with pytest.raises(CosimError, match="controller"):
         run_cosim(sc, replace(sc.cosim, master="compiled"))
-    # auto falls back to the Python master for the controller
-    assert run_cosim(sc, replace(sc.cosim, master="auto")).ok
+    # auto falls back to the Python master for the controller, and says so
+    fallback = run_cosim(sc, replace(sc.cosim, master="auto"))
+    assert fallback.ok and fallback.master == "python"
