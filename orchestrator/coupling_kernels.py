@@ -106,6 +106,14 @@ def crossing_bracket(direction: int, has_rate: bool, ga: float, gb: float, h: fl
 
 
 @njit
+def secant_offset(ga: float, gb: float, h: float) -> float:
+    """Offset within a step of length ``h`` where the secant through ``ga`` at 0 and
+    ``gb`` at ``h`` crosses zero (``h`` when they are equal): which crossing of a step
+    comes first."""
+    return h * ga / (ga - gb) if ga != gb else h
+
+
+@njit
 def predicted_to_cross(direction: int, g: float, rate: float, accel_bound: float, h: float,
                        safety: float = 2.0) -> bool:  # fmt: skip
     """Conservative test of whether an indicator could reach zero within ``h``, given

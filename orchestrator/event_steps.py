@@ -12,6 +12,7 @@ from collections.abc import Mapping
 from typing import Any
 
 from .cosim_result import CosimError
+from .coupling_kernels import secant_offset
 from .events import Indicator, crossing, locate, predicted_to_cross
 from .protocols import EventProtocol
 
@@ -58,7 +59,7 @@ class EventSteps:
             bracket = crossing(ind, ga, gb, h, ra, rb)
             if bracket is None:
                 continue
-            est = bracket[0] if bracket[0] > 0.0 else _secant_offset(ga, gb, bracket[1])
+            est = bracket[0] if bracket[0] > 0.0 else secant_offset(ga, gb, bracket[1])
             if best is None or est < best[0]:
                 best = (est, bracket, ind, proto)
         return best
@@ -117,7 +118,3 @@ class EventSteps:
                 f"{ind.unit}: more than {self.settings.max_events_per_period} events within one "
                 f"forcing period before t = {self.time:.9g} s (cosim.max_events_per_period)"
             )
-
-
-def _secant_offset(ga: float, gb: float, h: float) -> float:
-    return h * ga / (ga - gb) if ga != gb else h

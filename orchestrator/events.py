@@ -31,13 +31,6 @@ class Indicator:
     rate: str | None = None
 
 
-def hermite_extremum(ga: float, ra: float, gb: float, rb: float, h: float, direction: int):
-    """Time offset and value of the interior extremum of the Hermite cubic that comes
-    closest to crossing in ``direction`` (minimum for -1, maximum for +1), or None."""
-    found, offset, value = kernels.hermite_extremum(ga, ra, gb, rb, h, direction)
-    return (offset, value) if found else None
-
-
 def crossing(
     ind: Indicator, ga: float, gb: float, h: float, ra: float = 0.0, rb: float = 0.0
 ) -> tuple[float, float] | None:

@@ -27,7 +27,7 @@ from rubcosim.components.stator import (
     settle_mode,
 )
 
-from .coupling_kernels import PI_ERR_START, crossing_bracket, predicted_to_cross
+from .coupling_kernels import PI_ERR_START, crossing_bracket, predicted_to_cross, secant_offset
 from .flat_layout import (
     EV_IMPACT,
     EV_OFF,
@@ -149,10 +149,7 @@ def first_crossing(S, inds, n, bef, h):
         found, lo, hi = crossing_bracket(inds[i, 2], inds[i, 4] >= 0, ga, gb, h, ra, rb)
         if not found:
             continue
-        if lo > 0.0:
-            est = lo
-        else:
-            est = hi * ga / (ga - gb) if ga != gb else hi
+        est = lo if lo > 0.0 else secant_offset(ga, gb, hi)
         if best < 0 or est < best_est:
             best, best_est, best_lo, best_hi = i, est, lo, hi
     return best, best_lo, best_hi

@@ -14,6 +14,13 @@ from __future__ import annotations
 
 from collections import namedtuple
 
+from rubcosim.components.rotor_unit import JeffcottRotorUnit, TwoMassRotorUnit
+from rubcosim.components.stator_unit import (
+    CasingStatorUnit,
+    ElasticStatorUnit,
+    RigidStatorUnit,
+)
+
 FlatGraph = namedtuple(
     "FlatGraph",
     [
@@ -63,12 +70,32 @@ EV_IMPACT, EV_RELEASE, EV_SLIP, EV_ON, EV_OFF = range(5)
 PR_RIGID, PR_ELASTIC = 0, 1
 PS_MODE, PS_COUNTER, PS_LAST_IMPACT, PS_SCALE = range(4)  # S.prs columns
 PF_V_CHAT, PF_MIN_FLIGHT = 0, 1  # G.pr_f columns
-# stator output slots the protocols read (order of the unit classes' outputs)
-RIGID_GAP, RIGID_GAP_RATE, RIGID_VX_PLUS, RIGID_VY_PLUS = 0, 1, 2, 3
-RIGID_NORMAL, RIGID_SLIP, RIGID_HOLD_MARGIN, RIGID_HOLD_FORCE = 6, 8, 9, 10
-PENALTY_GAP, PENALTY_GAP_RATE = 3, 4
-RIGID_MODE_INPUT = 6  # the rigid stator's contact_mode
-RESET_VX_INPUT, RESET_VY_INPUT, RESET_COUNTER_INPUT = 2, 3, 4  # the rotor's
+
+
+# stator output and rotor input slots the protocols use: positions in the unit
+# classes' signal tuples, read off the classes so the two cannot drift apart
+def _slots(signals: tuple, *names: str) -> tuple[int, ...]:
+    order = [s.name for s in signals]
+    return tuple(order.index(n) for n in names)
+
+
+RIGID_GAP, RIGID_GAP_RATE, RIGID_VX_PLUS, RIGID_VY_PLUS = _slots(
+    RigidStatorUnit.outputs, "gap", "gap_rate", "vx_plus", "vy_plus"
+)
+RIGID_NORMAL, RIGID_SLIP, RIGID_HOLD_MARGIN, RIGID_HOLD_FORCE = _slots(
+    RigidStatorUnit.outputs, "normal_force", "slip", "hold_margin", "hold_force"
+)
+PENALTY_GAP, PENALTY_GAP_RATE = _slots(ElasticStatorUnit.outputs, "gap", "gap_rate")
+assert _slots(CasingStatorUnit.outputs, "gap", "gap_rate") == (PENALTY_GAP, PENALTY_GAP_RATE)
+(RIGID_MODE_INPUT,) = _slots(RigidStatorUnit.inputs, "contact_mode")
+RESET_VX_INPUT, RESET_VY_INPUT, RESET_COUNTER_INPUT = _slots(
+    JeffcottRotorUnit.inputs, "reset_vx", "reset_vy", "reset_counter"
+)
+assert _slots(TwoMassRotorUnit.inputs, "reset_vx", "reset_vy", "reset_counter") == (
+    RESET_VX_INPUT,
+    RESET_VY_INPUT,
+    RESET_COUNTER_INPUT,
+)
 
 # how a run ends or pauses (what the loop returns), and why it failed (S.info)
 RUNNING, DONE, PAUSED, NEED_ROOM, FAILED = range(5)

@@ -96,25 +96,33 @@ def _record_due(G, S):
 
 @njit
 def _checkpoint(S):
+    """Save what a replay restores: the units and the master's state (``_master_state``)."""
     S.cnt[N_SNAPSHOTS] += 1
-    S.ck_ust[:] = S.ust
-    S.ck_out[:] = S.out
-    S.ck_hist[:] = S.hist
-    S.ck_scale[:] = S.scale
-    S.ck_acc[:] = S.acc
-    S.ck_prs[:] = S.prs
-    S.ck_ms[:] = S.ms[:MS_SAVED]
+    _copy(S, True)
 
 
 @njit
 def _replay(S):
-    S.ust[:] = S.ck_ust
-    S.out[:] = S.ck_out
-    S.hist[:] = S.ck_hist
-    S.scale[:] = S.ck_scale
-    S.acc[:] = S.ck_acc
-    S.prs[:] = S.ck_prs
-    S.ms[:MS_SAVED] = S.ck_ms
+    _copy(S, False)
+
+
+@njit
+def _copy(S, save):
+    """Unit rows, outputs, histories, scales, acceleration bounds, protocol states and
+    the master's saved scalars: into the checkpoint (``save``) or back from it."""
+    pairs = ((S.ust, S.ck_ust), (S.out, S.ck_out), (S.hist, S.ck_hist), (S.acc, S.ck_acc),
+             (S.prs, S.ck_prs))  # fmt: skip
+    for live, kept in pairs:
+        if save:
+            kept[:] = live
+        else:
+            live[:] = kept
+    if save:
+        S.ck_scale[:] = S.scale
+        S.ck_ms[:] = S.ms[:MS_SAVED]
+    else:
+        S.scale[:] = S.ck_scale
+        S.ms[:MS_SAVED] = S.ck_ms
 
 
 @njit
