@@ -51,6 +51,7 @@ BENCHMARKS = (
     Benchmark("stress", ("stress_cosim.py", "--long"), COSIM),
     Benchmark("isolation", ("bench_isolation.py",), COSIM),
     Benchmark("fmu_step", ("bench_fmu_step.py",), COSIM),
+    Benchmark("kinks", ("bench_kinks.py",), COSIM),
 )
 
 

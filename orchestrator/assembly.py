@@ -228,6 +228,7 @@ def run_cosim(
             [r for r, t in types.items() if unit_class(r, t).records_left_limits],
             connection_scales(scenario, connections),
             divergence_bounds(scenario, connections),
+            kink_sources=list(scenario.fmus),
         )
         return master.run(
             scenario.sim["t_start"],

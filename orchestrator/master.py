@@ -18,7 +18,9 @@ Per macro step ``[t, t + h]``:
    sources now give (``settle``); the difference between what a unit was
    given for ``t + h`` and what its sources gave is the coupling error;
 3. with error control, a step whose error norm exceeds 1 is undone and
-   retried smaller (PI controller, :mod:`.step_control`);
+   retried smaller (PI controller, :mod:`.step_control`), unless the error
+   comes from a kink or jump in a foreign FMU's output: then the step is cut
+   just past it and that input's extrapolation restarts (:mod:`.kink_steps`);
 4. the event protocols' indicators are checked for a crossing; one is
    located by re-running the step onto trial times (:func:`.events.locate`),
    the step is cut there, the protocol acts (a velocity reset, a contact
@@ -42,10 +44,12 @@ from rubcosim.components.wiring import Connection
 from rubcosim.progress import watch
 
 from .cosim_result import CosimError, CosimResult
+from .coupling_norms import CouplingNorms
 from .event_steps import EventSteps
 from .extrapolation import evaluate, polynomial
 from .flat_layout import CHECKPOINT_EVERY, STALL_STEPS
 from .flat_master import flat_unsupported, run_flat
+from .kink_steps import KinkSteps
 from .ordering import evaluation_order
 from .protocols import EventProtocol
 from .rollback import Rollback
@@ -55,14 +59,15 @@ from .step_control import PIController
 __all__ = ["CosimError", "CosimResult", "Master", "evaluation_order"]
 
 
-class Master(EventSteps, Rollback):
+class Master(CouplingNorms, EventSteps, KinkSteps, Rollback):
     """Runs coupled units from ``t_start`` to ``t_end``.
 
     ``units`` maps a name to a unit (a :class:`rubcosim.components.unit.Unit` or an
     :class:`.fmu_unit.FmuUnit`); ``feedthrough[name]`` says whether its outputs
     depend on its inputs at the same instant; ``interpolates[name]`` whether it
     takes input derivatives.  ``period`` (s) scales the default steps and the
-    event tolerance.
+    event tolerance.  ``kink_sources``: units whose outputs may have kinks or jumps they
+    do not announce (foreign FMUs), located as events (:mod:`.kink_steps`).
     """
 
     def __init__(
@@ -77,6 +82,7 @@ class Master(EventSteps, Rollback):
         left_limits: Sequence[str] = (),
         nominal: Mapping[str, float] | None = None,
         bounds: Mapping[str, float] | None = None,
+        kink_sources: Sequence[str] = (),
     ) -> None:
         self.units = dict(units)
         self.settings = settings.with_defaults(period)
@@ -101,6 +107,8 @@ class Master(EventSteps, Rollback):
         for c in self.connections:
             self.targets_of[c.unit].append(c)
         self.source_units = {c.target: {s.split(".", 1)[0] for s in c.sources} for c in connections}
+        locate_kinks = self.settings.kinks == "locate" and self.settings.adaptive
+        self.kink_inputs = self._kink_inputs(set(kink_sources)) if locate_kinks else set()
         p = self.settings.extrapolation
         self.input_orders = {n: (p if interpolates[n] else 0) for n in self.units}
         self.gauss_seidel = self.settings.algorithm == "gauss-seidel"
@@ -194,23 +202,6 @@ class Master(EventSteps, Rollback):
         real = self.settle(fresh=True)
         self._last_round = (t + h, given, real)
         return given, real
-
-    def _error(self, given: Mapping[str, float], real: Mapping[str, float], tol: float) -> float:
-        err = 0.0
-        for key, r in real.items():
-            g = given[key]
-            scale = max(self.scale[key], abs(r), abs(g))
-            if g != r:
-                err = max(err, abs(g - r) / (tol * scale))
-        return err
-
-    def _worst(self, given: Mapping[str, float], real: Mapping[str, float]) -> str:
-        """The input whose coupling error is the largest relative to its scale."""
-        return max(
-            real,
-            key=lambda k: abs(given[k] - real[k]) / max(self.scale[k], abs(real[k]), 1e-300),
-            default="no input",
-        )
 
     def _step(self, t: float, h: float, snap: Any):
         given, real = self._round(t, h)
@@ -327,13 +318,17 @@ class Master(EventSteps, Rollback):
                 self.counters["rejected"] += 1
                 self.h = h / 4.0
                 continue
+            kink = None
             if st.adaptive and err > 1.0 and h > st.min_step:
-                self._restore(snap)
-                self._set_time(t)
-                self._free(snap)
-                self.counters["rejected"] += 1
-                self.h = max(self.pi.reject(h, err), st.min_step)
-                continue
+                kink = self._kink_search(t, h, snap, given, real, err) if self.kink_inputs else None
+                if kink is None:
+                    self._restore(snap)
+                    self._set_time(t)
+                    self._free(snap)
+                    self.counters["rejected"] += 1
+                    self.h = max(self.pi.reject(h, err), st.min_step)
+                    continue
+                h, given, real, err, restart, h_next = kink
             hit = self._first_crossing(inds, before, t, h) if inds else None
             if hit is not None and snap is None and st.events == "locate":
                 # an unannounced crossing: replay deterministically from the checkpoint
@@ -351,7 +346,11 @@ class Master(EventSteps, Rollback):
             elif hit is not None and hit[1] != (0.0, h):
                 hit = None  # a plain master only sees sign changes at communication points
             self._accept(t, h, given, real, before)
-            if st.adaptive and hit is None and h >= 0.5 * h_nominal:
+            if kink is not None and hit is None:
+                if restart:
+                    self._restart_inputs(restart, real)
+                self.h = min(h_next or h, st.max_step)
+            elif st.adaptive and hit is None and h >= 0.5 * h_nominal:
                 self.h = min(max(self.pi.accept(h_nominal, err), st.min_step), st.max_step)
             # accepted only because the step could not shrink further
             at_floor = at_floor + 1 if st.adaptive and err > 1.0 else 0

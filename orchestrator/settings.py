@@ -9,6 +9,7 @@ from typing import Any
 
 ALGORITHMS = ("gauss-seidel", "jacobi")
 EVENT_MODES = ("locate", "step", "off")
+KINK_MODES = ("locate", "off")
 BACKENDS = ("direct", "fmu")
 MASTERS = ("auto", "compiled", "python")
 UNIT_INTEGRATORS = ("exact", "dop853")
@@ -48,6 +49,9 @@ class CosimSettings:
     events: str = "locate"  # "locate": roll back and step onto events; "step": at the next
     # communication point; "off": no event handling at all (plain master)
     event_tol: float = 1e-10  # event time tolerance, relative to the forcing period
+    # "locate": kinks and jumps in a foreign FMU's outputs are located like events and
+    # restart the extrapolation (orchestrator.kink_steps); "off": left to error control
+    kinks: str = "locate"
     # rebound speed (relative to the velocity scale) ending chatter; None: the scenario's
     # sim.chatter_tol, raised to MIN_CHATTER_TOL (the one rule of both sides)
     chatter_tol: float | None = None
@@ -115,6 +119,8 @@ def cosim_settings(raw: Mapping[str, Any]) -> CosimSettings:
             v[key] = _choice(key, value, ALGORITHMS)
         elif key == "events":
             v[key] = _choice(key, value, EVENT_MODES)
+        elif key == "kinks":
+            v[key] = _choice(key, value, KINK_MODES)
         elif key == "unit_integrator":
             v[key] = _choice(key, value, UNIT_INTEGRATORS)
         elif key == "extrapolation":
