@@ -18,8 +18,10 @@ from typing import Any
 import numpy as np
 
 from .declaration import FmuIdentity, Provided, UnitType, Wire, planar_states
+from .jit import USE_NUMBA
 from .linear_propagation import affine_model, exact_step
 from .parameters import choice
+from .propagator_cache import PropagatorCache
 from .rotor import (
     JEFFCOTT_PARAMS,
     TWO_MASS_PARAMS,
@@ -78,7 +80,8 @@ class _Rotor(Unit):
         return [q["x0"], q["y0"], q["vx0"], q["vy0"]]
 
     def _initial_state(self) -> dict[str, Any]:
-        return {"y": np.array(self._initial_y(), dtype=float), "h": 0.0, "resets_applied": 0}
+        y = np.array(self._initial_y(), dtype=float)
+        return {"y": y, "h": 0.0, "resets_applied": 0, "last_step": 0.0}
 
     def _apply_reset(self) -> None:
         counter = int(self.u["reset_counter"])
@@ -105,14 +108,27 @@ class _Rotor(Unit):
             self._model = model
         return model
 
+    def _propagators(self) -> PropagatorCache:
+        """The exact step's propagators per step size (:mod:`.propagator_cache`): not
+        state, a function of the parameters and the step size."""
+        cache = getattr(self, "_cache_of_steps", None)
+        if cache is None:
+            cache = PropagatorCache(self._linear_model(), self.params["speed"])
+            self._cache_of_steps = cache
+        return cache
+
     def _advance(self, t: float, h: float) -> None:
         self._apply_reset()
         q = self.params
         st = self.state
         u = self.input_rows(self.ode_inputs)
         if q["integrator"] == "exact":
-            if h > 0.0:
+            if h > 0.0 and (USE_NUMBA or h != st.get("last_step")):
                 st["y"] = exact_step(t, h, st["y"], self._linear_model(), q["speed"], u)
+            elif h > 0.0:  # plain numpy (an FMU) at a step that recurs: cached propagators
+                st["y"] = self._propagators().step(t, h, st["y"], u)
+            if h > 0.0:
+                st["last_step"] = h  # state: a replay from a restore takes the same path
             return
         st["y"], st["h"] = step_ode(
             self.ode_kind, t, t + h, st["y"], st["h"], self._ode_params(), u, q["rtol"], q["atol"]

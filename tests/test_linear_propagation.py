@@ -11,6 +11,7 @@ import pytest
 import scipy.linalg
 
 from rubcosim.components.linear_propagation import affine_model, exact_step, expm
+from rubcosim.components.propagator_cache import PropagatorCache
 from rubcosim.components.rotor import free_whirl
 from rubcosim.components.rotor_unit import JeffcottRotorUnit
 from rubcosim.components.stepping import step_ode
@@ -114,6 +115,50 @@ def test_rotor_unit_steps_exactly_by_default_and_dop853_on_request():
     assert abs(a["x"] - b["x"]) < 1e-8 * abs(a["x"])  # DOP853's rtol 1e-10, not better
     with pytest.raises(Exception, match="integrator"):
         JeffcottRotorUnit.example(integrator="rk4")
+
+
+@pytest.mark.parametrize("speed_ratio", [0.5, 1.0, 3.0])
+def test_cached_propagators_follow_the_closed_form_whirl_and_resonance(speed_ratio):
+    # the FMU's path: E, P1..P3, Wc, Ws from one 6n x 6n exponential per step size
+    w = speed_ratio * WN
+    c = 0.0 if speed_ratio == 1.0 else 2.0 * 0.05 * M * WN  # undamped at resonance
+    model = affine_model(JEFFCOTT, np.array([M, c, K, E, w, 0.0]), 4, 2, w)
+    cache = PropagatorCache(model, w)
+    if c:
+        amp, phase = free_whirl(M, c, K, E, w)
+        exact = lambda t: _whirl(t, amp, phase, w)  # noqa: E731
+    else:
+
+        def exact(t):  # x'' + wn^2 x = e wn^2 cos(wn t) from rest at the origin
+            s, co = math.sin(w * t), math.cos(w * t)
+            return 0.5 * E * np.array([w * t * s, -w * t * co + s, w * (s + w * t * co),
+                                       w * (-co + w * t * s) + w * co])  # fmt: skip
+
+    t, y = 0.0371, exact(0.0371)
+    for h in (3e-4, 3e-4, 3e-4, 0.02, 0.02, 3e-4):
+        y = cache.step(t, h, y, np.zeros((2, 3)))
+        t += h
+    scale = np.abs(exact(t)).max()
+    assert np.abs(y - exact(t)).max() < 1e-12 * scale
+    assert cache.computed == 2  # each step size's propagators once
+
+
+def test_cached_propagators_agree_with_the_per_step_exponential_under_inputs():
+    rng = np.random.default_rng(11)
+    w = 1.3 * WN
+    p = np.array([M, 30.0, K, E, w, 9.81, 10.0, 2.0, 5.0])
+    model = affine_model(TWO_MASS, p, 8, 4, w)
+    cache = PropagatorCache(model, w, size=2)
+    scales = np.tile(SCALES4, 2)
+    for h in (1e-5, 4e-4, 0.03, 1e-5, 4e-4):
+        for _ in range(3):
+            y0 = rng.normal(size=8) * scales
+            u = rng.normal(size=(4, 3)) * np.array([20.0, 20.0 * WN, 20.0 * WN**2])
+            t0 = rng.uniform(0.0, 2.0)
+            ref = exact_step(t0, h, y0, model, w, u)
+            assert np.max(np.abs(cache.step(t0, h, y0, u) - ref) / scales) < 1e-12
+    # three step sizes kept at most two at a time: 1e-5 and 4e-4 were computed again
+    assert cache.computed == 5 and len(cache.kept) == 2
 
 
 def test_bad_unit_integrator_setting_is_named():
