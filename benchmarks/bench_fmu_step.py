@@ -2,11 +2,13 @@
 
 The Jeffcott and two-mass rotor FMUs are built from the current sources, loaded with
 fmpy's ``FMU2Slave`` and stepped with macro steps of T/400 (the co-simulation's default
-first step) while their force inputs change every step with first and second
-derivatives (as our master sets them); each integrator (``exact``: the matrix
-exponential of :mod:`rubcosim.components.linear_propagation`; ``dop853``: the units'
-DOP853, plain Python inside the FMU) is timed over ``--steps`` steps, ``--repeats``
-times; the median per step is reported with its min-max over the repeats.
+first step), all that long or each a little different, while their force inputs change
+every step with first and second derivatives (as our master sets them); each integrator
+(``exact``: the matrix exponential of :mod:`rubcosim.components.linear_propagation`, or
+the propagators of :mod:`rubcosim.components.propagator_cache` when a step is as long as
+the one before; ``dop853``: the units' DOP853, plain Python inside the FMU) is timed
+over ``--steps`` steps, ``--repeats`` times; the median per step is reported with its
+min-max over the repeats.
 
 Then the cost of each FMI call a master makes on a macro step, through the same
 fmpy instances: ``fmi2SetReal`` of the two force inputs, ``fmi2SetRealInputDerivatives``
@@ -56,10 +58,16 @@ CALLS = (
     "fmi2FreeFMUstate",
 )
 DERIVATIVES = ("fx_d1", "fx_d2", "fy_d1", "fy_d2")
+# (unit integrator, steps): the exact step at a fixed and at a changing step, DOP853 at a
+# fixed one
+STEPPINGS = (("exact", "fixed"), ("exact", "changing"), ("dop853", "fixed"))
 
 
-def time_fmu(path: Path, params: dict[str, float], integrator: str, steps: int) -> float:
-    """Seconds per fmi2DoStep over ``steps`` steps of T/400."""
+def time_fmu(
+    path: Path, params: dict[str, float], integrator: str, steps: int, varying: bool = False
+) -> float:
+    """Seconds per fmi2DoStep over ``steps`` steps of T/400 (``varying``: each a little
+    longer or shorter than the one before, as an adaptive master makes them)."""
     from fmpy import extract, read_model_description
     from fmpy.fmi2 import FMU2Slave
 
@@ -86,9 +94,10 @@ def time_fmu(path: Path, params: dict[str, float], integrator: str, steps: int) 
         fmu.setReal(inputs, [math.cos(0.01 * k), math.sin(0.01 * k)])
         fmu.setReal(derivs, [3.0, 1e3, -2.0, 5e2])
         start = time.perf_counter()
-        fmu.doStep(t, h)
+        hk = h * (1.0 + 0.25 * math.sin(0.7 * k)) if varying else h
+        fmu.doStep(t, hk)
         wall += time.perf_counter() - start
-        t += h
+        t += hk
     fmu.terminate()
     fmu.freeInstance()
     return wall / steps
@@ -158,21 +167,24 @@ def main(argv: list[str] | None = None) -> int:
                 print(f"{name:24s} {call:30s} {statistics.median(times) * 1e6:8.1f} us/call")
         rows = []
         for name, params in ROTORS.items():
-            for integrator in ("exact", "dop853"):
-                time_fmu(built[name], params, integrator, 50)  # load, first calls
+            for integrator, steps in STEPPINGS:
+                varying = steps == "changing"
+                time_fmu(built[name], params, integrator, 50, varying)  # load, first calls
                 runs = [
-                    time_fmu(built[name], params, integrator, args.steps)
+                    time_fmu(built[name], params, integrator, args.steps, varying)
                     for _ in range(args.repeats)
                 ]
                 rows.append(
                     {
                         "fmu": name,
                         "integrator": integrator,
+                        "steps": steps,
                         "median_s": statistics.median(runs),
                         "runs_s": runs,
                     }  # fmt: skip
                 )
-                print(f"{name:24s} {integrator:7s} {statistics.median(runs) * 1e6:8.1f} us/step")
+                print(f"{name:24s} {integrator:7s} {steps:8s} "
+                      f"{statistics.median(runs) * 1e6:8.1f} us/step")  # fmt: skip
     meta = stamp(steps=args.steps, repeats=args.repeats, step="T/400", calls=args.calls)
     args.out.mkdir(parents=True, exist_ok=True)
     data = {"meta": meta, "rows": rows, "per_call": per_call}
@@ -180,19 +192,24 @@ def main(argv: list[str] | None = None) -> int:
     lines = [
         "# Rotor FMUs: cost of one fmi2DoStep",
         "",
-        "| FMU | unit integrator | fmi2DoStep, median | min - max |",
-        "|---|---|---:|---:|",
+        "| FMU | unit integrator | step | fmi2DoStep, median | min - max |",
+        "|---|---|---|---:|---:|",
     ]
     for r in rows:
         lo, hi = min(r["runs_s"]) * 1e6, max(r["runs_s"]) * 1e6
         lines.append(
-            f"| {r['fmu']} | {r['integrator']} | {r['median_s'] * 1e6:.0f} us | "
+            f"| {r['fmu']} | {r['integrator']} | {r['steps']} | {r['median_s'] * 1e6:.0f} us | "
             f"{lo:.0f} - {hi:.0f} us |"
         )
     lines += [
         "",
-        f"Through fmpy, steps of T/400 with changing inputs and input derivatives; median "
-        f"over {args.repeats} runs of {args.steps} steps. " + stamp_line(meta),
+        f"Through fmpy, steps of T/400 (fixed: every step that long, as a tool at a fixed "
+        f"communication step makes them; changing: T/400 times 1 + 0.25 sin(0.7 k), as an "
+        f"adaptive master makes them) with changing inputs and input derivatives; median "
+        f"over {args.repeats} runs of {args.steps} steps. The exact step takes propagators "
+        f"cached per step size when a step has the length of the one before "
+        f"(components/propagator_cache.py), one 9 x 9 matrix exponential otherwise. "
+        + stamp_line(meta),
         "",
         "| FMU | FMI call | per call, median | min - max |",
         "|---|---|---:|---:|",
