@@ -101,3 +101,110 @@ def crossed_end(s: np.ndarray) -> float:
     if s[F_CUR] <= 0.0:
         return s[X_CUR]
     return s[X_BLK]
+
+
+# --- with rates: safeguarded cubic Hermite interpolation ----------------------------------
+# When the caller also knows the function's derivative (the stator's gap and its exact
+# rate), the cubic Hermite interpolant through both ends of the bracket is exact for a
+# quadratic and third-order accurate otherwise, where Brent's method, seeing values
+# only, crawls when the root sits near one end (a grazing contact: a gap of 1e-14 m
+# closing from rest, tens of trials).  Same reverse-communication contract:
+#
+#     s = bracket_with_rates(ta, fa, da, tb, fb, db, xtol)   # fa > 0 >= fb
+#     while not advance_with_rates(s):
+#         s[R_F], s[R_D] = f(s[R_X]), f'(s[R_X])
+#     t = s[R_B]                                              # f <= 0 there
+#
+# Each trial is the interpolant's first root in the bracket, kept half a tolerance
+# inside it (so a root known exactly is bracketed by the next trial), or the middle
+# when the last two trials did not halve the bracket.  A trial on the crossed side
+# whose Newton step back to the root is within the tolerance ends the search there
+# (as the masters' test at the end of a step does), so the search usually ends on
+# the crossed side and the caller need not re-run onto it.
+R_A, R_FA, R_DA, R_B, R_FB, R_DB, R_X, R_F, R_D, R_TOL, R_W1, R_W2, R_PENDING = range(13)
+RATE_STATE_SIZE = 13
+
+
+@njit
+def hermite_first_root(fa: float, da: float, fb: float, db: float, h: float) -> float:
+    """The first zero in ``(0, h]`` of the cubic Hermite interpolant with values
+    ``fa > 0 >= fb`` and derivatives ``da``, ``db`` at 0 and ``h``."""
+    # p(th) = ((c3 th + c2) th + c1) th + fa on th in [0, 1]
+    c3 = 2.0 * (fa - fb) + h * (da + db)
+    c2 = 3.0 * (fb - fa) - h * (2.0 * da + db)
+    c1 = h * da
+    lo, hi = 0.0, 1.0
+    # the first interval between critical points over which p changes sign
+    if abs(c3) > 1e-300:
+        disc = c2 * c2 - 3.0 * c3 * c1
+        if disc > 0.0:
+            sq = math.sqrt(disc)
+            r0, r1 = (-c2 - sq) / (3.0 * c3), (-c2 + sq) / (3.0 * c3)
+            if r0 > r1:
+                r0, r1 = r1, r0
+            for r in (r0, r1):
+                if lo < r < hi and ((c3 * r + c2) * r + c1) * r + fa <= 0.0:
+                    hi = r
+                    break
+    elif abs(c2) > 1e-300:
+        r = -c1 / (2.0 * c2)
+        if lo < r < hi and (c2 * r + c1) * r + fa <= 0.0:
+            hi = r
+    # Newton on the monotone piece, bisection when it leaves it
+    th = 0.5 * (lo + hi)
+    for _ in range(60):
+        p = ((c3 * th + c2) * th + c1) * th + fa
+        if p > 0.0:
+            lo = th
+        else:
+            hi = th
+        dp = (3.0 * c3 * th + 2.0 * c2) * th + c1
+        nxt = th - p / dp if dp != 0.0 else 0.5 * (lo + hi)
+        if not lo < nxt < hi:
+            nxt = 0.5 * (lo + hi)
+        if abs(nxt - th) <= 1e-15 * max(th, 1e-300) or hi - lo <= 1e-16:
+            th = nxt
+            break
+        th = nxt
+    return th * h
+
+
+@njit
+def bracket_with_rates(
+    ta: float, fa: float, da: float, tb: float, fb: float, db: float, xtol: float
+) -> np.ndarray:
+    """The rate-aware locator's state for ``[ta, tb]`` with ``fa > 0 >= fb`` and the
+    derivatives ``da``, ``db`` there; ``xtol`` as in :func:`bracket`."""
+    s = np.zeros(RATE_STATE_SIZE)
+    s[R_A], s[R_FA], s[R_DA] = ta, fa, da
+    s[R_B], s[R_FB], s[R_DB] = tb, fb, db
+    s[R_TOL] = xtol
+    s[R_W1] = s[R_W2] = math.inf
+    return s
+
+
+@njit
+def advance_with_rates(s: np.ndarray) -> bool:
+    """Take the value and derivative at the trial point into account and propose the
+    next trial ``s[R_X]``; True when located (``s[R_B]`` is the crossed end)."""
+    if s[R_PENDING] != 0.0:
+        s[R_PENDING] = 0.0
+        if s[R_F] > 0.0:
+            s[R_A], s[R_FA], s[R_DA] = s[R_X], s[R_F], s[R_D]
+        else:
+            s[R_B], s[R_FB], s[R_DB] = s[R_X], s[R_F], s[R_D]
+            if s[R_D] < 0.0 and -s[R_F] <= -s[R_D] * s[R_TOL]:
+                return True  # crossed, and the root is within the tolerance behind
+    a, b, tol = s[R_A], s[R_B], s[R_TOL]
+    width = b - a
+    if width <= tol or s[R_FB] == 0.0:
+        return True
+    if width > 0.5 * s[R_W2]:  # two trials without halving the bracket: bisect
+        x = a + 0.5 * width
+    else:
+        x = a + hermite_first_root(s[R_FA], s[R_DA], s[R_FB], s[R_DB], width)
+    x = min(max(x, a + 0.5 * tol), b - 0.5 * tol)
+    s[R_W2], s[R_W1] = s[R_W1], width
+    s[R_X] = x
+    s[R_PENDING] = 1.0
+    return False

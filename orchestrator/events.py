@@ -14,7 +14,19 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass
 
-from rubcosim.components.root_finding import F_CUR, X_CUR, advance, bracket, crossed_end
+from rubcosim.components.root_finding import (
+    F_CUR,
+    R_B,
+    R_D,
+    R_F,
+    R_X,
+    X_CUR,
+    advance,
+    advance_with_rates,
+    bracket,
+    bracket_with_rates,
+    crossed_end,
+)
 
 from . import coupling_kernels as kernels
 
@@ -73,18 +85,27 @@ def locate(
     """Locate the crossing between ``ta`` (before) and ``tb`` (beyond) to ``t_tol``.
 
     ``probe(t)`` runs the coupled system onto ``t`` and returns the indicator and
-    its rate there.  The trial times come from the engines' locator
-    (:mod:`rubcosim.components.root_finding`: three-point interpolation inside
-    the bracket).  Returns the time on the far side of the crossing (the
-    indicator has crossed, by at most the tolerance) and the number of probes.
+    its rate there.  The trial times come from the one locator
+    (:mod:`rubcosim.components.root_finding`): cubic Hermite interpolation through
+    values and rates when the indicator has a rate, the engines' three-point
+    interpolation of values otherwise; always inside the bracket.  Returns the time
+    on the far side of the crossing (the indicator has crossed, by at most the
+    tolerance) and the number of probes.
     The system is left at the last probe, which the caller may need to redo.
     """
     sign = -1.0 if ind.direction < 0 else 1.0
     if ind.rate is not None and sign * gb >= 0.0 and rb != 0.0 and abs(gb / rb) <= t_tol:
         return tb, 0  # the end of the step is within the tolerance of the crossing
     # the locator's convention: positive before the event, <= 0 once it has happened
-    s = bracket(ta, -sign * ga, tb, -sign * gb, t_tol)
     trials = 0
+    if ind.rate is not None:
+        s = bracket_with_rates(ta, -sign * ga, -sign * ra, tb, -sign * gb, -sign * rb, t_tol)
+        while trials < max_trials and not advance_with_rates(s):
+            g, r = probe(float(s[R_X]))
+            trials += 1
+            s[R_F], s[R_D] = -sign * g, -sign * r
+        return float(s[R_B]), trials
+    s = bracket(ta, -sign * ga, tb, -sign * gb, t_tol)
     while trials < max_trials and not advance(s):
         g, _ = probe(float(s[X_CUR]))
         trials += 1

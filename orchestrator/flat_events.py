@@ -18,7 +18,19 @@ import math
 import numpy as np
 
 from rubcosim.components.jit import njit
-from rubcosim.components.root_finding import F_CUR, X_CUR, advance, bracket, crossed_end
+from rubcosim.components.root_finding import (
+    F_CUR,
+    R_B,
+    R_D,
+    R_F,
+    R_X,
+    X_CUR,
+    advance,
+    advance_with_rates,
+    bracket,
+    bracket_with_rates,
+    crossed_end,
+)
 from rubcosim.components.stator import (
     MODE_FREE,
     MODE_SLIDE_POS,
@@ -190,6 +202,17 @@ def locate(G, S, ind, bef_i, t, h, lo, hi):
     t_tol = G.fset[F_T_TOL]
     if ind[4] >= 0 and sign * gb >= 0.0 and rb != 0.0 and abs(gb / rb) <= t_tol:
         t_ev = tb  # the end of the step is within the tolerance of the crossing
+    elif ind[4] >= 0:  # with its rate: Hermite interpolation (events.locate)
+        s = bracket_with_rates(ta, -sign * ga, -sign * ra, tb, -sign * gb, -sign * rb, t_tol)
+        trials = 0
+        while trials < LOCATE_TRIALS and not advance_with_rates(s):
+            status, g, r = _probe(G, S, ind, t, s[R_X], last)
+            if status:
+                return status, False, h
+            trials += 1
+            s[R_F] = -sign * g
+            s[R_D] = -sign * r
+        t_ev = s[R_B]
     else:
         s = bracket(ta, -sign * ga, tb, -sign * gb, t_tol)
         trials = 0
