@@ -75,7 +75,8 @@ N_BASIS = 5  # 1, sigma, sigma^2 / 2, cos(w t), sin(w t)
 @njit
 def balance(M: np.ndarray, sweeps: int = 3) -> np.ndarray:
     """Scale factors ``d`` (powers of 2, so exact) such that ``M[i, j] d[j] / d[i]`` has
-    rows and columns of similar norms (Parlett & Reinsch's balancing, all rows at once):
+    rows and columns of similar norms (Parlett & Reinsch's balancing, one index at a
+    time when compiled, all at once in plain numpy):
     a state in metres beside one in m/s would otherwise let the larger entries set the
     exponential's round-off.  Plain loops when compiled (no temporaries), vectorised in
     an FMU's plain-numpy copy."""
@@ -92,20 +93,20 @@ def balance(M: np.ndarray, sweeps: int = 3) -> np.ndarray:
             ratio = np.where(ok, r, 1.0) / np.where(ok, c, 1.0)
             d = d * np.exp2(np.floor(0.5 * np.log2(ratio) + 0.5))
         return d
-    c = np.empty(n)
-    r = np.empty(n)
+    inv = np.ones(n)  # 1 / d, exact (powers of 2): products where divisions would be slow
     for _ in range(sweeps):
-        c[:] = 0.0
-        r[:] = 0.0
-        for i in range(n):
+        for i in range(n):  # one index at a time, with the others' current scaling
+            ci, ri = 0.0, 0.0
             for j in range(n):
-                if i != j:
-                    b = abs(M[i, j]) * (d[j] / d[i])
-                    c[j] += b
-                    r[i] += b
-        for i in range(n):
-            if c[i] > 0.0 and r[i] > 0.0:
-                d[i] *= 2.0 ** math.floor(0.5 * math.log2(r[i] / c[i]) + 0.5)
+                if j != i:
+                    ci += abs(M[j, i]) * inv[j]
+                    ri += abs(M[i, j]) * d[j]
+            ci *= d[i]
+            ri *= inv[i]
+            if ci > 0.0 and ri > 0.0:
+                f = 2.0 ** math.floor(0.5 * math.log2(ri / ci) + 0.5)
+                d[i] *= f
+                inv[i] /= f
     return d
 
 
@@ -203,6 +204,68 @@ def expm(M: np.ndarray) -> np.ndarray:
     return R
 
 
+# up to this 1-norm of the balanced matrix the step sums exp(M) z as a Taylor series
+# (matrix-vector products only); beyond, the Pade approximant of exp(M) itself
+TAYLOR_MAX_NORM = 8.0
+EPS = 2.0**-53
+
+
+@njit
+def taylor_terms(theta: float) -> int:
+    """The number of Taylor terms after which the remainder of exp(X) x, with
+    ``|X|_1 <= theta <= 1``, is below ``EPS |x|`` (bound ``theta^(m+1) / (m+1)! e``)."""
+    bound = math.e
+    m = 0
+    while m < 30:
+        m += 1
+        bound *= theta / m
+        if bound * theta / (m + 1) <= EPS:
+            return m
+    return m
+
+
+@njit
+def expm_action(M: np.ndarray, z: np.ndarray, norm: float) -> np.ndarray:
+    """exp(M) z for a matrix of 1-norm ``norm``: the Taylor series of exp(M / s) applied
+    ``s = ceil(norm)`` times, each truncated where its remainder is bound to be below
+    the unit round-off relative to the vector, or earlier once two consecutive terms
+    are (Al-Mohy & Higham 2011, "Computing the action of the matrix exponential": the
+    chain of the input basis, nilpotent, keeps the 1-norm at 1 where the terms fall
+    much faster): a few matrix-vector products where the Pade approximant needs
+    matrix products and a solve."""
+    s = max(1, int(math.ceil(norm)))
+    m = taylor_terms(norm / s)
+    n = z.shape[0]
+    x = z.copy()
+    term = np.empty(n)
+    nxt = np.empty(n)
+    for _ in range(s):
+        term[:] = x
+        small = 0  # consecutive terms below the round-off of the sum: the series is done
+        for k in range(1, m + 1):
+            f = 1.0 / (s * k)
+            if USE_NUMBA:
+                t_max, x_max = 0.0, 0.0
+                for i in range(n):
+                    acc = 0.0
+                    for j in range(n):
+                        acc += M[i, j] * term[j]
+                    nxt[i] = acc * f
+                for i in range(n):
+                    term[i] = nxt[i]
+                    x[i] += nxt[i]
+                    t_max = max(t_max, abs(nxt[i]))
+                    x_max = max(x_max, abs(x[i]))
+            else:
+                term[:] = (M @ term) * f
+                x += term
+                t_max, x_max = np.abs(term).max(), np.abs(x).max()
+            small = small + 1 if t_max <= EPS * x_max else 0
+            if small == 2:
+                break
+    return x
+
+
 @njit
 def affine_model(kind: int, p: np.ndarray, n: int, n_in: int, w: float):
     """``(A, Bu, a, b, c)`` of unit ``kind``'s right-hand side (see the module's
@@ -283,17 +346,28 @@ def exact_step(t0: float, h: float, y: np.ndarray, model, w: float, u: np.ndarra
     z[n] = 1.0
     z[n + 3] = math.cos(w * t0)
     z[n + 4] = math.sin(w * t0)
-    if not USE_NUMBA:
+    if not USE_NUMBA:  # numpy: a Pade approximant is a dozen calls, a series more
         E = expm(M * (d.reshape(1, m) / d.reshape(m, 1)))  # exp(M) = D E D^-1
         return d[:n] * (E[:n] @ (z / d))
-    for i in range(m):  # the balanced matrix, in place
-        for j in range(m):
-            M[i, j] *= d[j] / d[i]
-    E = expm(M)
+    inv = 1.0 / d  # exact: powers of 2
+    norm = 0.0
+    for j in range(m):  # the balanced matrix, in place, and its 1-norm
+        col = 0.0
+        for i in range(m):
+            M[i, j] *= d[j] * inv[i]
+            col += abs(M[i, j])
+        norm = max(norm, col)
+    zs = z * inv
     out = np.zeros(n)
+    if norm <= TAYLOR_MAX_NORM:
+        x = expm_action(M, zs, norm)
+        for i in range(n):
+            out[i] = d[i] * x[i]
+        return out
+    E = expm(M)
     for i in range(n):
         acc = 0.0
         for j in range(m):
-            acc += E[i, j] * (z[j] / d[j])
+            acc += E[i, j] * zs[j]
         out[i] = d[i] * acc
     return out

@@ -120,14 +120,14 @@ def indicators(G, S, inds):
     return n
 
 
-@njit
+@njit(inline="always")
 def value(S, ind):
     g = S.out[ind[0], ind[1]]
     r = S.out[ind[0], ind[4]] if ind[4] >= 0 else 0.0
     return g, r
 
 
-@njit
+@njit(inline="always")
 def may_cross(S, inds, n, h):
     for i in range(n):
         if inds[i, 4] < 0:
@@ -139,7 +139,7 @@ def may_cross(S, inds, n, h):
     return False
 
 
-@njit
+@njit(inline="always")
 def learn_rates(S, inds, n, bef, h):
     """Running bound on the second derivative of every indicator that has a rate."""
     for i in range(n):
@@ -150,7 +150,7 @@ def learn_rates(S, inds, n, bef, h):
         S.acc[inds[i, 0], inds[i, 1]] = max(0.0 if math.isnan(a) else a, abs(r1 - bef[i, 1]) / h)
 
 
-@njit
+@njit(inline="always")
 def first_crossing(S, inds, n, bef, h):
     """``(index, lo, hi)`` of the indicator whose crossing in the step comes first
     (index -1: none)."""

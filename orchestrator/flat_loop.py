@@ -74,7 +74,7 @@ from .flat_round import fail, settle, step, unit_outputs
 EVENT_ROOM = 16  # free event slots a loop pass needs
 
 
-@njit
+@njit(inline="always")
 def _set_time(G, S, t):
     S.ms[MS_TIME] = t
     for k in range(G.kind.shape[0]):
@@ -83,7 +83,7 @@ def _set_time(G, S, t):
     return 0
 
 
-@njit
+@njit(inline="always")
 def _record_due(G, S):
     tol = 1e-9 * G.fset[F_MIN_STEP]
     k = int(S.ms[MS_K_OUT])
@@ -125,7 +125,7 @@ def _copy(S, save):
         S.ms[:MS_SAVED] = S.ck_ms
 
 
-@njit
+@njit(inline="always")
 def _accept(G, S, t, h, inds, n, bef):
     time = t + h
     S.ms[MS_TIME] = time
@@ -144,7 +144,7 @@ def _accept(G, S, t, h, inds, n, bef):
     S.cnt[N_ACCEPTED] += 1
 
 
-@njit
+@njit(inline="always")
 def _check_finite(G, S):
     for k in range(G.kind.shape[0]):
         for o in range(G.nout[k]):

@@ -29,7 +29,7 @@ from .flat_layout import (
 )
 
 
-@njit
+@njit(inline="always")
 def fail(S, code, unit, detail):
     S.info[INFO_CODE] = code
     S.info[INFO_UNIT] = unit
@@ -37,7 +37,7 @@ def fail(S, code, unit, detail):
     return code
 
 
-@njit
+@njit(inline="always")
 def unit_outputs(G, S, k):
     """Refresh the master's copy of unit ``k``'s outputs (``get_outputs``)."""
     status = outputs(G.kind[k], G.p[k], S.ust[k], S.out[k])
@@ -46,7 +46,7 @@ def unit_outputs(G, S, k):
     return 0
 
 
-@njit
+@njit(inline="always")
 def unit_step(G, S, k, t, h):
     idx = G.ode_idx[k, : G.node[k]]
     status = do_step(G.kind[k], G.ode[k], G.exact[k], G.ny[k], G.nin[k], idx, G.p[k],
@@ -56,7 +56,7 @@ def unit_step(G, S, k, t, h):
     return 0
 
 
-@njit
+@njit(inline="always")
 def set_input(S, k, i, value):
     """Set input ``i`` of unit ``k`` (its derivatives cleared: held constant)."""
     j = U + 3 * i
@@ -65,7 +65,7 @@ def set_input(S, k, i, value):
     S.ust[k, j + 2] = 0.0
 
 
-@njit
+@njit(inline="always")
 def conn_sum(G, S, c):
     total = 0.0
     for j in range(G.src0[c], G.src0[c + 1]):
@@ -93,7 +93,7 @@ def settle(G, S, fresh, real):
     return 0
 
 
-@njit
+@njit(inline="always")
 def _input_polynomial(S, c, t, h, end, have_end, order):
     hist = S.hist[c]
     n = int(hist[0])
@@ -154,7 +154,7 @@ def round_(G, S, t, h, use_ends):
     return settle(G, S, True, S.real)
 
 
-@njit
+@njit(inline="always")
 def coupling_error(S, tol):
     """The largest coupling error relative to ``tol`` times the signal's scale."""
     err = 0.0

@@ -79,7 +79,7 @@ def _numba_cache_dir() -> Path:
     sources makes a stale mixture of old and new kernels impossible.
     """
     digest = hashlib.sha256(__version__.encode())
-    for package in ("rubcosim.components", "rubcosim.reference"):
+    for package in ("rubcosim.components", "rubcosim.reference", "rubcosim.orchestrator"):
         spec = find_spec(package)
         for folder in spec.submodule_search_locations if spec else ():
             for path in sorted(Path(folder).glob("*.py")):
