@@ -94,7 +94,7 @@ def _add(inds, n, unit, output, direction, kind, rate, proto):
     return n + 1
 
 
-@njit
+@njit(inline="always")
 def indicators(G, S, inds):
     """Fill ``inds`` with the indicators the protocols watch now; returns how many."""
     n = 0
@@ -272,7 +272,7 @@ def _impact(G, S, p):
     return 0
 
 
-@njit
+@njit(inline="always")
 def overdue(G, S, p):
     """A rigid impact the locator could not resolve (the disc inside the stator, still
     approaching), to be applied now: True (``RigidContact.overdue``)."""

@@ -73,7 +73,7 @@ def conn_sum(G, S, c):
     return total
 
 
-@njit
+@njit(inline="always")
 def settle(G, S, fresh, real):
     """Set every connected input from its sources' outputs and refresh the outputs
     (:meth:`.master.Master.settle`); the input values go to ``real``."""
@@ -112,7 +112,7 @@ def _input_polynomial(S, c, t, h, end, have_end, order):
     return polynomial3(m, ts[0], us[0], ts[1], us[1], ts[2], us[2], t)
 
 
-@njit
+@njit(inline="always")
 def round_(G, S, t, h, use_ends):
     """Step every unit from ``t`` to ``t + h`` (:meth:`.master.Master._round`): the
     values the units were given for ``t + h`` go to ``S.given``, the values their
