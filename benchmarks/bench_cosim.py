@@ -4,12 +4,13 @@ For three rotor scenarios (rigid stator, elastic stator on a casing, oil-film
 bearing with rub) it measures the error on the rotor displacement and the
 wall time of:
 
-* ``accurate`` and ``fast``: the monolithic engines, rtol scanned;
+* ``accurate`` and ``fast``: the monolithic engines, rtol scanned in half decades;
 * ``adaptive+events (compiled)``, ``adaptive+events (python)`` and
   ``adaptive+events (fmu)``: the master's default algorithm (Gauss-Seidel,
   extrapolation order 2, PI step control, events located by rollback) on the
   compiled master with in-process units, on the Python master with the same
-  units, and on the Python master with our FMUs; ``cosim.rtol`` scanned;
+  units, and on the Python master with our FMUs; ``cosim.rtol`` scanned in half
+  decades;
 * ``fixed+events``: the same algorithm with a fixed macro step (compiled master),
   step scanned;
 * ``fixed Jacobi, no events``: the plain master most tools use: Jacobi,
@@ -83,11 +84,21 @@ def _steps(counts: tuple[int, ...]) -> tuple[float, ...]:
     return tuple(float(n) for n in counts)
 
 
+def _half_decades(first: int, last: int) -> tuple[float, ...]:
+    """1e-first, 3e-(first+1), 1e-(first+1), ..., 1e-last: loosest first."""
+    out = [float(f"1e-{first}")]
+    for k in range(first + 1, last + 1):
+        out += [float(f"3e-{k}"), float(f"1e-{k}")]
+    return tuple(out)
+
+
 def methods(quick: bool) -> list[Method]:
     """The compared methods; ``quick`` scans two values each (for a smoke run)."""
-    rtols = (1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10)
-    cosim_rtols = (1e-3, 1e-4, 1e-5, 1e-6, 1e-7)
-    fmu_rtols = (1e-3, 1e-4, 1e-5, 1e-6, 1e-7)
+    # tolerances in half decades (1 and 3 of each): the cost at the target error is the
+    # cheapest run that meets it, so a coarser scan would overstate it by up to 10x
+    rtols = _half_decades(5, 10)
+    cosim_rtols = _half_decades(3, 7)
+    fmu_rtols = cosim_rtols
     per_period = (100, 400, 1600, 6400, 25600)
     if quick:
         rtols, cosim_rtols, fmu_rtols, per_period = (
