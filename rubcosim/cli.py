@@ -64,6 +64,11 @@ def _parser() -> argparse.ArgumentParser:
             action="store_true",
             help="no progress bar (shown on a terminal for runs of more than 2 s)",
         )
+        parser.add_argument(
+            "--no-plots",
+            action="store_true",
+            help="write the results and report without plots (matplotlib is not loaded)",
+        )
     _analysis_parsers(sub)
     cli_lyapunov.add_parser(sub, SCENARIO_HELP)
     cli_ssp.add_parser(sub, SCENARIO_HELP)
@@ -302,7 +307,7 @@ def cmd_check(args: argparse.Namespace) -> int:
     scenario = api.load(args.scenario, args.set)
     check_output_dir(args.out)
     checked = api.check(scenario, args.backend, progress=not args.no_progress)
-    out = checked.write(args.out)
+    out = checked.write(args.out, plots=not args.no_plots)
     report, co = checked.report, checked.cosim
     wall = report["wall_time_s"]
     print(
@@ -337,7 +342,7 @@ def cmd_run(args: argparse.Namespace) -> int:
         c = res.counters
         what = f"{c['events']} events ({c['impacts']} impacts)"
         engine, failure = f"{res.engine} engine", "simulation"
-    out = res.write(args.out)
+    out = res.write(args.out, plots=not args.no_plots)
     print(
         f"{scenario.name}: {engine}, t = {scenario.sim['t_start']:g}..{res.t_reached:g} s, "
         f"{what}, {res.wall_time_s:.3f} s -> {out}"

@@ -123,11 +123,12 @@ class SimulationResult:
 
         return write_csv(self.run, path)
 
-    def write(self, out_dir: str | Path) -> Path:
-        """Write ``results.csv``, ``report.json`` and the plots, as ``rubcosim run`` does."""
+    def write(self, out_dir: str | Path, plots: bool = True) -> Path:
+        """Write ``results.csv``, ``report.json`` and (``plots``) the plots, as ``rubcosim
+        run`` does."""
         from .writing import write_results
 
-        return write_results(self.run, out_dir)
+        return write_results(self.run, out_dir, plots)
 
     def __repr__(self) -> str:
         return (
@@ -157,15 +158,17 @@ class CheckResult:
         """The largest difference of an output, relative to the reference's largest value."""
         return float(self.report["worst_rel_error"])
 
-    def write(self, out_dir: str | Path) -> Path:
-        """Write ``report.json`` and ``comparison.png`` (as ``rubcosim check``)."""
-        from rubcosim.consistency import comparison_plot
-
+    def write(self, out_dir: str | Path, plots: bool = True) -> Path:
+        """Write ``report.json`` and (``plots``) ``comparison.png`` (as ``rubcosim check``)."""
         from .writing import write_directory
 
         def fill(tmp: Path) -> None:
             text = json.dumps(self.report, indent=2) + "\n"
             (tmp / "report.json").write_text(text, encoding="utf-8")
+            if not plots:
+                return
+            from rubcosim.consistency import comparison_plot  # matplotlib only when plotting
+
             comparison_plot(
                 self.scenario, self.reference, self.cosim, self.rows, tmp / "comparison.png"
             )

@@ -75,18 +75,20 @@ def write_csv(run: ScenarioRun | CosimRun, path: str | Path) -> Path:
     return Path(path)
 
 
-def write_results(run: ScenarioRun | CosimRun, out_dir: str | Path) -> Path:
-    """Write ``results.csv``, ``report.json`` and the plots into a fresh directory, then
-    move it to ``out_dir``.
+def write_results(run: ScenarioRun | CosimRun, out_dir: str | Path, plots: bool = True) -> Path:
+    """Write ``results.csv``, ``report.json`` and (``plots``) the plots into a fresh
+    directory, then move it to ``out_dir``.
 
     A previous result in ``out_dir`` is replaced only once the new one is
     complete, so an interrupted run never leaves a half-written result.
     """
-    from . import plots  # matplotlib only when writing
 
     def fill(tmp: Path) -> None:
         write_csv(run, tmp / "results.csv")
         (tmp / "report.json").write_text(json.dumps(report(run), indent=2) + "\n", encoding="utf-8")
-        plots.scenario_plots(run, tmp)
+        if plots:
+            from .plots import scenario_plots  # matplotlib only when plotting
+
+            scenario_plots(run, tmp)
 
     return write_directory(out_dir, fill)

@@ -840,6 +840,14 @@ def test_cli_good_run_replaces_old_result(tmp_path, capsys):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["out"]  # no temporary leftovers
 
 
+def test_cli_no_plots_writes_results_and_report_only(tmp_path, capsys):
+    out = tmp_path / "out"
+    assert main(["run", str(LINEAR_OSC), "--set", OSC_SHORT, "--out", str(out), "--no-plots"]) == 0
+    assert sorted(p.name for p in out.iterdir()) == ["report.json", "results.csv"]
+    assert main(["run", str(LINEAR_OSC), "--set", OSC_SHORT, "--out", str(out)]) == 0
+    assert {p.name for p in out.iterdir()} >= {"report.json", "results.csv", *PLOT_FILES}
+
+
 def test_cli_creates_missing_parents(tmp_path, capsys):
     out = tmp_path / "a" / "b" / "out"
     assert main(["run", str(LINEAR_OSC), "--set", OSC_SHORT, "--out", str(out)]) == 0
