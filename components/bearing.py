@@ -9,6 +9,8 @@ dimensional force is ``sigma * f`` with
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
+from typing import Any
 
 from .jit import njit
 from .parameters import nonnegative, positive
@@ -92,3 +94,9 @@ def linear_bearing_force(
 ) -> tuple[float, float]:
     """Isotropic spring-damper bearing force on the journal, N."""
     return -k * x - c * vx, -k * y - c * vy
+
+
+def film_scale(q: Mapping[str, Any]) -> float:
+    """Capone's force scale sigma (N) of an oil-film bearing with parameters ``q`` (its
+    ``speed`` the journal's spin, rad/s)."""
+    return oilfilm_sigma(q["viscosity"], q["speed"], q["radius"], q["length"], q["clearance"])

@@ -2,18 +2,17 @@
 
 from __future__ import annotations
 
-import math
-from collections.abc import Mapping
 from typing import Any
 
 from .bearing import (
     LINEAR_PARAMS,
     OILFILM_PARAMS,
+    film_scale,
     linear_bearing_force,
     oilfilm_force,
-    oilfilm_sigma,
 )
 from .declaration import Derived, FmuIdentity, Need, UnitType, Wire
+from .flat_units import RowOutputs
 from .parameters import positive
 from .unit import Unit, planar_motion, real_signal
 
@@ -25,13 +24,7 @@ FORCE_OUTPUTS = (
 )
 
 
-def film_scale(q: Mapping[str, Any]) -> float:
-    """Capone's force scale sigma (N) of an oil-film bearing with parameters ``q`` (its
-    ``speed`` the journal's spin, rad/s)."""
-    return oilfilm_sigma(q["viscosity"], q["speed"], q["radius"], q["length"], q["clearance"])
-
-
-class _Bearing(Unit):
+class _Bearing(RowOutputs, Unit):
     role = "bearing"
     inputs = JOURNAL_INPUTS
     outputs = FORCE_OUTPUTS
@@ -53,18 +46,6 @@ class OilFilmBearingUnit(_Bearing):
         positive("speed", None, "rad/s", "journal spin speed w", example=700.0),
     )
 
-    def _outputs(self) -> dict[str, float]:
-        q, u = self.params, self.u
-        sigma = film_scale(q)
-        fx, fy = oilfilm_force(u["x"], u["y"], u["vx"], u["vy"], q["speed"], q["clearance"], sigma)
-        if not (math.isfinite(fx) and math.isfinite(fy)):
-            ratio = math.hypot(u["x"], u["y"]) / q["clearance"]
-            raise ValueError(
-                f"{self.name}: the journal touches the bearing wall (eccentricity ratio "
-                f"{ratio:.6g} >= 1); the oil-film model has no force there"
-            )
-        return {"fx": fx, "fy": fy}
-
 
 class LinearBearingUnit(_Bearing):
     """Isotropic spring-damper bearing."""
@@ -72,13 +53,6 @@ class LinearBearingUnit(_Bearing):
     type_name = "linear"
     summary = "linear isotropic spring-damper bearing"
     params_spec = LINEAR_PARAMS
-
-    def _outputs(self) -> dict[str, float]:
-        q, u = self.params, self.u
-        fx, fy = linear_bearing_force(
-            u["x"], u["y"], u["vx"], u["vy"], q["stiffness"], q["damping"]
-        )
-        return {"fx": fx, "fy": fy}
 
 
 # The bearing holds the journal of a two-mass rotor.

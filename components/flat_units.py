@@ -11,11 +11,13 @@ whole macro step (and its rollback) runs without Python.  A row holds:
 * ``U + 3 i`` .. ``U + 3 i + 2``: input ``i``'s value, first and second time
   derivative at the step's start (in the order of the unit class's ``inputs``).
 
-:func:`do_step` and :func:`outputs` follow :meth:`.unit.Unit.do_step` and the unit
-classes' ``_advance`` / ``_outputs`` operation for operation, from the same
-physics kernels (:mod:`.rotor`, :mod:`.stator`, :mod:`.bearing`,
-:mod:`.linear_propagation`, :mod:`.stepping`), so the two masters agree to
-round-off; ``tests/test_flat_master.py`` holds them to 1e-12.  A unit type
+:func:`outputs` is the one definition of these units' outputs: the unit classes
+take theirs from it too (:class:`RowOutputs`, on the row of the unit object), so the
+Python master, the FMUs and the compiled master evaluate the same kernel.
+:func:`do_step` follows :meth:`.unit.Unit.do_step` and the classes' ``_advance``
+operation for operation, from the same physics kernels (:mod:`.rotor`,
+:mod:`.linear_propagation`, :mod:`.stepping`); ``tests/test_flat_master.py`` holds
+the two masters to 1e-12 (they are bit-identical).  A unit type
 without a row form here (the controller with its delay history, the hybrid
 impact oscillators, FMUs) runs on the Python master.
 """
@@ -28,8 +30,7 @@ from typing import Any
 
 import numpy as np
 
-from .bearing import linear_bearing_force, oilfilm_force
-from .bearing_unit import film_scale
+from .bearing import film_scale, linear_bearing_force, oilfilm_force
 from .jit import njit
 from .linear_propagation import exact_step
 from .rotor import jeffcott_force, two_mass_disc_force
@@ -44,11 +45,11 @@ from .stator import (
     friction_force,
     friction_reserve,
     penalty_contact_force,
+    penalty_damping,
     rigid_impact,
     slip_speed,
     sticking_friction,
 )
-from .stator_unit import penalty_damping
 from .stepping import OK, advance
 from .unit_odes import CASING, CASING_P, JEFFCOTT, JEFFCOTT_P, TWO_MASS, TWO_MASS_P
 
@@ -70,6 +71,15 @@ STEP_NOT_FINITE = 3  # the state is not finite after the step
 OUT_NO_FILM = 4  # a journal outside the oil film: no bearing force
 OUT_BAD_MODE = 5  # a contact mode that is not 0, 1, 2 or 3
 OUT_NO_MASS = 6  # sustained contact without a disc mass
+# why a step or the outputs failed, as both masters report it
+REASONS = {
+    STEP_BAD_INPUT: "an input or the step is not finite",
+    STEP_FAILED: "the unit's integrator failed (step size below round-off)",
+    STEP_NOT_FINITE: "the state is not finite after the step",
+    OUT_NO_FILM: "the journal touches the bearing wall; the oil-film model has no force",
+    OUT_BAD_MODE: "{name}.contact_mode = {mode} is not 0, 1, 2 or 3",
+    OUT_NO_MASS: "{name}.disc_mass must be > 0 for sustained contact",
+}
 
 RIGID_P = (
     "x_offset",
@@ -255,3 +265,47 @@ def outputs(kind, p, st, out):
     fx, fy = linear_bearing_force(st[U], st[U + 3], st[U + 6], st[U + 9], p[0], p[1])
     out[0], out[1] = fx, fy
     return STEP_OK
+
+
+def failure_reason(status: int, row: np.ndarray, name: str) -> str:
+    """What a nonzero status of :func:`do_step` or :func:`outputs` on the row of unit
+    ``name`` means."""
+    mode = int(row[U + 18]) if status == OUT_BAD_MODE else 0
+    return REASONS[status].format(name=name, mode=mode)
+
+
+def unit_row(unit: Any) -> np.ndarray:
+    """The row of a unit object (:class:`.unit.Unit`): its state, time and inputs."""
+    row = np.zeros(ROW)
+    y = unit.state.get("y")
+    if y is not None:
+        row[Y : Y + len(y)] = y
+    row[H] = unit.state.get("h", 0.0)
+    row[IV] = unit.state.get("resets_applied", 0)
+    row[T] = unit.time
+    for i, s in enumerate(unit.inputs):
+        d1, d2 = unit.du.get(s.name, (0.0, 0.0))
+        row[U + 3 * i : U + 3 * i + 3] = unit.u[s.name], d1, d2
+    return row
+
+
+class RowOutputs:
+    """``_outputs`` of a unit class from :func:`outputs` on the unit's row: the unit
+    classes (the Python master, the FMUs) and the compiled master evaluate the same
+    kernel, so what feeds which output is written once."""
+
+    def _outputs(self) -> dict[str, float]:
+        p = getattr(self, "_row_params", None)
+        if p is None:
+            p = flat_params(self.role, self.type_name, self.params)
+            self._row_params = p
+        out = np.zeros(MAX_OUTPUTS)
+        kind = FLAT_TYPES[(self.role, self.type_name)][0]
+        row = unit_row(self)
+        status = outputs(kind, p, row, out)
+        if status != STEP_OK:
+            raise ValueError(failure_reason(status, row, self.name))
+        return {
+            s.name: (int(v) if s.kind == "integer" else float(v))
+            for s, v in zip(self.outputs, out, strict=False)
+        }

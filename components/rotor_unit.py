@@ -18,6 +18,7 @@ from typing import Any
 import numpy as np
 
 from .declaration import FmuIdentity, Provided, UnitType, Wire, planar_states
+from .flat_units import RowOutputs
 from .jit import USE_NUMBA
 from .linear_propagation import affine_model, exact_step
 from .parameters import choice
@@ -70,7 +71,7 @@ RESET_PROTOCOL = (
 )
 
 
-class _Rotor(Unit):
+class _Rotor(RowOutputs, Unit):
     role = "rotor"
     protocol = RESET_PROTOCOL
     feedthrough = False
@@ -134,16 +135,6 @@ class _Rotor(Unit):
             self.ode_kind, t, t + h, st["y"], st["h"], self._ode_params(), u, q["rtol"], q["atol"]
         )
 
-    def _disc_force(self, t: float, y: np.ndarray) -> tuple[float, float]:
-        raise NotImplementedError
-
-    def _outputs(self) -> dict[str, float]:
-        y = self.state["y"]
-        fx, fy = self._disc_force(self.time, y)
-        out = {"x": y[0], "y": y[1], "vx": y[2], "vy": y[3], "force_x": fx, "force_y": fy}
-        out["resets_applied"] = self.state["resets_applied"]
-        return out
-
 
 class JeffcottRotorUnit(_Rotor):
     """Jeffcott rotor: one unbalanced disc on a massless elastic shaft."""
@@ -154,13 +145,6 @@ class JeffcottRotorUnit(_Rotor):
     inputs = _DISC_INPUTS
     outputs = _DISC_OUTPUTS
     ode_kind, ode_params, ode_inputs = JEFFCOTT, JEFFCOTT_P, ("fx", "fy")
-
-    def _disc_force(self, t: float, y: np.ndarray) -> tuple[float, float]:
-        q = self.params
-        return jeffcott_force(
-            t, y[0], y[1], y[2], y[3], q["mass"], q["damping"], q["stiffness"],
-            q["eccentricity"], q["speed"], q["gravity"],
-        )  # fmt: skip
 
 
 class TwoMassRotorUnit(_Rotor):
@@ -185,19 +169,6 @@ class TwoMassRotorUnit(_Rotor):
         q = self.params
         journal = [q["journal_x0"], q["journal_y0"], q["journal_vx0"], q["journal_vy0"]]
         return [*super()._initial_y(), *journal]
-
-    def _disc_force(self, t: float, y: np.ndarray) -> tuple[float, float]:
-        q = self.params
-        return two_mass_disc_force(
-            t, y, 0, 4, q["mass"], q["damping"], q["stiffness"], q["shaft_damping"],
-            q["eccentricity"], q["speed"], q["gravity"],
-        )  # fmt: skip
-
-    def _outputs(self) -> dict[str, float]:
-        out = super()._outputs()
-        y = self.state["y"]
-        out.update(journal_x=y[4], journal_y=y[5], journal_vx=y[6], journal_vy=y[7])
-        return out
 
 
 def rotor_clock(q: Mapping[str, Any]) -> tuple[float, float]:

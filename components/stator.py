@@ -13,6 +13,8 @@ Sign convention for forces: returned forces act on the rotor disc; the casing
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
+from typing import Any
 
 from .jit import njit
 from .parameters import nonnegative, planar_initial_state, positive, real
@@ -341,3 +343,11 @@ def rub_onset_speed_ratios(damping_ratio: float, eccentricity_ratio: float) -> t
         sq = math.sqrt(disc)
         roots = [(-b - sq) / (2.0 * a), (-b + sq) / (2.0 * a)]
     return tuple(sorted(math.sqrt(u) for u in roots if u > 0.0))
+
+
+def penalty_damping(q: Mapping[str, Any]) -> float:
+    """The contact damping (N s/m) of the penalty law: ``contact_damping`` if given (>= 0),
+    else the one giving the restitution for the impact mass."""
+    if q["contact_damping"] >= 0.0:
+        return q["contact_damping"]
+    return damping_from_restitution(q["restitution"], q["contact_stiffness"], q["impact_mass"])

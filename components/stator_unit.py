@@ -13,29 +13,22 @@ computed from the disc state the stator sees now), writes them to the rotor's
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
 
 from .declaration import Derived, FmuIdentity, Need, UnitType, Wire, planar_states
+from .flat_units import RowOutputs
 from .parameters import ParameterError, nonnegative
 from .stator import (
     CASING_PARAMS,
     ELASTIC_PARAMS,
-    MODE_FREE,
-    MODE_SLIDE_NEG,
-    MODE_SLIDE_POS,
-    MODE_STICK,
     RIGID_PARAMS,
     constraint_normal_force,
-    contact_force_components,
     contact_geometry,
-    damping_from_restitution,
-    friction_force,
-    friction_reserve,
     penalty_contact_force,
+    penalty_damping,
     penalty_normal_force,
     rigid_impact,
     slip_speed,
@@ -69,11 +62,7 @@ SLIP = real_signal(
 )
 
 
-def _relative(u: Mapping[str, float], cx: float, cy: float, cvx: float, cvy: float):
-    return u["x"] - cx, u["y"] - cy, u["vx"] - cvx, u["vy"] - cvy
-
-
-class RigidStatorUnit(Unit):
+class RigidStatorUnit(RowOutputs, Unit):
     """Rigid stator: the gap, the post-impact disc velocity and, in sustained contact,
     the constraint force that holds the disc on its surface."""
 
@@ -140,59 +129,8 @@ class RigidStatorUnit(Unit):
     def _advance(self, t: float, h: float) -> None:
         """A rigid stator has no dynamics of its own."""
 
-    def _outputs(self) -> dict[str, float]:
-        q = self.params
-        rx, ry, rvx, rvy = _relative(self.u, q["x_offset"], q["y_offset"], 0.0, 0.0)
-        dist, nx, ny = contact_geometry(rx, ry)
-        vx, vy = rigid_impact(
-            rvx, rvy, nx, ny, q["restitution"], q["friction"], q["disc_radius"], q["speed"]
-        )
-        vn = rvx * nx + rvy * ny
-        out = {
-            "gap": q["clearance"] - dist,
-            "gap_rate": -vn,
-            "vx_plus": vx,
-            "vy_plus": vy,
-            "slip": slip_speed(rvx, rvy, nx, ny, q["disc_radius"], q["speed"]),
-            "fx": 0.0,
-            "fy": 0.0,
-            "normal_force": 0.0,
-            "contact": 0.0,
-            "hold_margin": 0.0,
-            "hold_force": 0.0,
-        }
-        mode = int(self.u["contact_mode"])
-        if mode == MODE_FREE:
-            return out
-        if mode not in (MODE_SLIDE_POS, MODE_SLIDE_NEG, MODE_STICK):
-            raise ValueError(f"{self.name}.contact_mode = {mode} is not 0, 1, 2 or 3")
-        m = q["disc_mass"]
-        if m <= 0.0:
-            raise ValueError(f"{self.name}.disc_mass must be > 0 for sustained contact")
-        ofx, ofy = self.u["other_fx"], self.u["other_fy"]
-        vt = -rvx * ny + rvy * nx
-        n = constraint_normal_force(
-            ofx, ofy, nx, ny, vt, vn, dist, q["clearance"], m, q["constraint_rate"]
-        )
-        hold = sticking_friction(-ofx * ny + ofy * nx, 0.0, vt, vn, dist, m, math.inf)
-        ft = friction_force(mode, q["friction"], n, hold)
-        out["fx"], out["fy"] = contact_force_components(n, ft, nx, ny)
-        out["normal_force"] = n
-        out["contact"] = 2.0 if mode == MODE_STICK else 1.0
-        out["hold_margin"] = friction_reserve(q["friction"], n, hold)
-        out["hold_force"] = hold
-        return out
 
-
-def penalty_damping(q: Mapping[str, Any]) -> float:
-    """The contact damping (N s/m) of the penalty law: ``contact_damping`` if given (>= 0),
-    else the one giving the restitution for the impact mass."""
-    if q["contact_damping"] >= 0.0:
-        return q["contact_damping"]
-    return damping_from_restitution(q["restitution"], q["contact_stiffness"], q["impact_mass"])
-
-
-class _Penalty(Unit):
+class _Penalty(RowOutputs, Unit):
     role = "stator"
 
     def _check(self, params: Mapping[str, Any]) -> None:
@@ -208,28 +146,6 @@ class _Penalty(Unit):
 
     def _contact_damping(self) -> float:
         return penalty_damping(self.params)
-
-    def _contact(self, cx: float, cy: float, cvx: float, cvy: float):
-        """(fx, fy, Fn, gap, gap_rate) on the disc for a stator centred at (cx, cy)."""
-        q = self.params
-        rx, ry, rvx, rvy = _relative(self.u, cx, cy, cvx, cvy)
-        fx, fy, fn = penalty_contact_force(
-            rx, ry, rvx, rvy, q["clearance"], q["contact_stiffness"], self._contact_damping(),
-            q["friction"], q["disc_radius"], q["speed"],
-        )  # fmt: skip
-        dist, nx, ny = contact_geometry(rx, ry)
-        return fx, fy, fn, q["clearance"] - dist, -(rvx * nx + rvy * ny)
-
-    def _force_outputs(self, cx: float, cy: float, cvx: float, cvy: float) -> dict[str, float]:
-        fx, fy, fn, gap, rate = self._contact(cx, cy, cvx, cvy)
-        return {
-            "fx": fx,
-            "fy": fy,
-            "normal_force": fn,
-            "gap": gap,
-            "gap_rate": rate,
-            "contact": 1.0 if gap < 0.0 else 0.0,
-        }
 
 
 _FORCE_OUTPUTS = (
@@ -257,10 +173,6 @@ class ElasticStatorUnit(_Penalty):
     def _advance(self, t: float, h: float) -> None:
         """A massless stator has no dynamics of its own."""
 
-    def _outputs(self) -> dict[str, float]:
-        q = self.params
-        return self._force_outputs(q["x_offset"], q["y_offset"], 0.0, 0.0)
-
 
 class CasingStatorUnit(_Penalty):
     """Elastic stator on a casing of its own mass, spring-mounted to ground."""
@@ -278,10 +190,6 @@ class CasingStatorUnit(_Penalty):
         q = self.params
         return {"y": np.array([q["x0"], q["y0"], q["vx0"], q["vy0"]], dtype=float), "h": 0.0}
 
-    def _centre(self, c: np.ndarray) -> tuple[float, float, float, float]:
-        q = self.params
-        return q["x_offset"] + c[0], q["y_offset"] + c[1], c[2], c[3]
-
     def _advance(self, t: float, h: float) -> None:
         q = {**self.params, "contact_damping": self._contact_damping()}
         p = np.array([q[k] for k in CASING_P], dtype=float)
@@ -290,16 +198,6 @@ class CasingStatorUnit(_Penalty):
             CASING, t, t + h, st["y"], st["h"], p, self.input_rows(("x", "y", "vx", "vy")),
             q["rtol"], q["atol"],
         )  # fmt: skip
-
-    def _outputs(self) -> dict[str, float]:
-        c = self.state["y"]
-        return {
-            **self._force_outputs(*self._centre(c)),
-            "casing_x": c[0],
-            "casing_y": c[1],
-            "casing_vx": c[2],
-            "casing_vy": c[3],
-        }
 
 
 # What every stator takes from the rotor it meets, and the disc state it reads.

@@ -31,14 +31,6 @@ from .flat_loop import run_loop, start
 from .protocols import ElasticContact, RigidContact
 
 CHUNK = 4000  # loop passes between progress updates
-FAIL_REASONS = {
-    fu.STEP_BAD_INPUT: "an input or the step is not finite",
-    fu.STEP_FAILED: "the unit's integrator failed (step size below round-off)",
-    fu.STEP_NOT_FINITE: "the state is not finite after the step",
-    fu.OUT_NO_FILM: "the journal touches the bearing wall; the oil-film model has no force",
-    fu.OUT_BAD_MODE: "contact_mode is not 0, 1, 2 or 3",
-    fu.OUT_NO_MASS: "disc_mass must be > 0 for sustained contact",
-}
 
 
 def flat_unsupported(master: Any) -> str | None:
@@ -134,23 +126,9 @@ def _graph(master: Any, t_end: float, times: np.ndarray, record: list[tuple[str,
     )  # fmt: skip
 
 
-def _unit_row(unit: Unit) -> np.ndarray:
-    row = np.zeros(fu.ROW)
-    y = unit.state.get("y")
-    if y is not None:
-        row[fu.Y : fu.Y + len(y)] = y
-    row[fu.H] = unit.state.get("h", 0.0)
-    row[fu.IV] = unit.state.get("resets_applied", 0)
-    row[fu.T] = unit.time
-    for i, s in enumerate(unit.inputs):
-        d1, d2 = unit.du.get(s.name, (0.0, 0.0))
-        row[fu.U + 3 * i : fu.U + 3 * i + 3] = unit.u[s.name], d1, d2
-    return row
-
-
 def _state(master: Any, G: L.FlatGraph, t_start: float) -> L.FlatState:
     n_units, n_conn = G.kind.shape[0], G.c_input.shape[0]
-    ust = np.array([_unit_row(u) for u in master.units.values()])
+    ust = np.array([fu.unit_row(u) for u in master.units.values()])
     n_proto = max(G.pr_kind.shape[0], 1)
     prs = np.zeros((n_proto, 4))
     for i, pr in enumerate(master.protocols):
@@ -194,10 +172,12 @@ def _message(master: Any, G: L.FlatGraph, S: L.FlatState) -> str:
     now = S.ms[L.MS_TIME]
     h, t = S.finfo[L.FI_H], S.finfo[L.FI_TIME]
     if code == L.FAIL_STEP:
-        text = f"{names[who]}: step failed: {FAIL_REASONS.get(detail, detail)}"
+        why = fu.failure_reason(detail, S.ust[who], names[who])
+        text = f"{names[who]}: step failed: {why}"
         return f"{text} (macro step {h:.3g} s from t = {t:.9g} s)" if h else text
     if code == L.FAIL_OUTPUT:
-        text = f"{names[who]}: no outputs at t = {now:.9g} s: {FAIL_REASONS.get(detail, detail)}"
+        why = fu.failure_reason(detail, S.ust[who], names[who])
+        text = f"{names[who]}: no outputs at t = {now:.9g} s: {why}"
         return f"{text} (macro step {h:.3g} s)" if h else text
     if code == L.FAIL_NOT_FINITE:
         out = master.units[names[who]].outputs[detail].name
