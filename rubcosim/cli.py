@@ -9,7 +9,7 @@ from typing import Any
 
 from rubcosim.components.parameters import ParameterError
 from rubcosim.components.wiring import CouplingError
-from rubcosim.orchestrator.master import CosimError
+from rubcosim.orchestrator.cosim_result import CosimError
 from rubcosim.orchestrator.settings import BACKENDS
 from rubcosim.reference.simulate import ENGINES
 
