@@ -52,6 +52,7 @@ BENCHMARKS = (
     Benchmark("isolation", ("bench_isolation.py",), COSIM),
     Benchmark("fmu_step", ("bench_fmu_step.py",), COSIM),
     Benchmark("kinks", ("bench_kinks.py",), COSIM),
+    Benchmark("startup", ("bench_startup.py",), ("components", "rubcosim", "orchestrator")),
 )
 
 

@@ -1,0 +1,83 @@
+"""Start-up cost of the command line with a warm numba cache: process wall time.
+
+Runs, as separate processes, ``python -c "import rubcosim.cli"`` (the interpreter, numba
+and the package), ``rubcosim run scenarios/impact_oscillator_linear.toml --no-plots``
+(a small scenario: 150 s of the linear impact oscillator on the ``fast`` engine, 48
+impacts; the results and report written) and the same run with its three plots.  One
+untimed run of each first, so the numba cache is warm and the files are in the page
+cache; then ``--repeats`` runs of each, taken in turn, median with min-max.  The cold
+start (an empty cache) is not measured here: it is the compilation ``make run``'s
+``rubcosim warm-up`` does once.  Writes benchmarks/results/startup.{json,md}.
+
+    .venv/bin/python benchmarks/bench_startup.py [--repeats 5]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+from stamp import REPO, stamp, stamp_line
+
+RESULTS = REPO / "benchmarks" / "results"
+SCENARIO = "scenarios/impact_oscillator_linear.toml"
+TARGET_S = 1.0  # issue 15: a warm run of a small scenario
+
+
+def commands(out: Path) -> dict[str, list[str]]:
+    exe = str(Path(sys.executable).with_name("rubcosim"))
+    run = [exe, "run", SCENARIO, "--out", str(out), "--no-progress"]
+    return {
+        "import rubcosim.cli": [sys.executable, "-c", "import rubcosim.cli"],
+        "rubcosim run --no-plots": [*run, "--no-plots"],
+        "rubcosim run (3 plots)": run,
+    }
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--repeats", type=int, default=5)
+    args = ap.parse_args(argv)
+    with tempfile.TemporaryDirectory() as tmp:
+        cmds = commands(Path(tmp) / "out")
+        walls: dict[str, list[float]] = {name: [] for name in cmds}
+        for _ in range(args.repeats + 1):  # the first round is untimed
+            for name, cmd in cmds.items():
+                start = time.perf_counter()
+                subprocess.run(cmd, cwd=REPO, check=True, capture_output=True)
+                walls[name].append(time.perf_counter() - start)
+    rows = {
+        name: {"median_s": statistics.median(w[1:]), "min_s": min(w[1:]), "max_s": max(w[1:])}
+        for name, w in walls.items()
+    }
+    report = {"meta": stamp(repeats=args.repeats, scenario=SCENARIO), "runs": rows}
+    RESULTS.mkdir(parents=True, exist_ok=True)
+    (RESULTS / "startup.json").write_text(json.dumps(report, indent=2) + "\n")
+    warm = rows["rubcosim run --no-plots"]["median_s"]
+    verdict = "met" if warm <= TARGET_S else "NOT met"
+    lines = [
+        "# Start-up with a warm cache",
+        "",
+        f"Process wall time, median of {args.repeats} runs (min-max) after one untimed run "
+        f"each; `{SCENARIO}` on its `fast` engine. " + stamp_line(report["meta"]),
+        "",
+        "| command | wall time |",
+        "|---|---|",
+    ]
+    for name, r in rows.items():
+        lines.append(f"| `{name}` | {r['median_s']:.2f} s ({r['min_s']:.2f}-{r['max_s']:.2f}) |")
+    lines += ["", f"Target: a warm run of a small scenario <= {TARGET_S:g} s: {verdict} "
+              "without plots.", ""]  # fmt: skip
+    (RESULTS / "startup.md").write_text("\n".join(lines))
+    print("\n".join(lines))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
