@@ -76,7 +76,8 @@ REASONS = {
     STEP_BAD_INPUT: "an input or the step is not finite",
     STEP_FAILED: "the unit's integrator failed (step size below round-off)",
     STEP_NOT_FINITE: "the state is not finite after the step",
-    OUT_NO_FILM: "the journal touches the bearing wall; the oil-film model has no force",
+    OUT_NO_FILM: "the journal touches the bearing wall (eccentricity ratio {ratio:.6g} >= 1); "
+    "the oil-film model has no force there",
     OUT_BAD_MODE: "{name}.contact_mode = {mode} is not 0, 1, 2 or 3",
     OUT_NO_MASS: "{name}.disc_mass must be > 0 for sustained contact",
 }
@@ -267,11 +268,13 @@ def outputs(kind, p, st, out):
     return STEP_OK
 
 
-def failure_reason(status: int, row: np.ndarray, name: str) -> str:
-    """What a nonzero status of :func:`do_step` or :func:`outputs` on the row of unit
-    ``name`` means."""
+def failure_reason(status: int, row: np.ndarray, p: np.ndarray, name: str) -> str:
+    """What a nonzero status of :func:`do_step` or :func:`outputs` on the row (and
+    parameter row ``p``) of unit ``name`` means."""
     mode = int(row[U + 18]) if status == OUT_BAD_MODE else 0
-    return REASONS[status].format(name=name, mode=mode)
+    # the journal's distance from the centre over the clearance (OILFILM_P: p[1])
+    ratio = math.hypot(row[U], row[U + 3]) / p[1] if status == OUT_NO_FILM else 0.0
+    return REASONS[status].format(name=name, mode=mode, ratio=ratio)
 
 
 def unit_row(unit: Any) -> np.ndarray:
@@ -304,7 +307,7 @@ class RowOutputs:
         row = unit_row(self)
         status = outputs(kind, p, row, out)
         if status != STEP_OK:
-            raise ValueError(failure_reason(status, row, self.name))
+            raise ValueError(failure_reason(status, row, p, self.name))
         return {
             s.name: (int(v) if s.kind == "integer" else float(v))
             for s, v in zip(self.outputs, out, strict=False)

@@ -232,7 +232,8 @@ def expm_action(M: np.ndarray, z: np.ndarray, norm: float) -> np.ndarray:
     are (Al-Mohy & Higham 2011, "Computing the action of the matrix exponential": the
     chain of the input basis, nilpotent, keeps the 1-norm at 1 where the terms fall
     much faster): a few matrix-vector products where the Pade approximant needs
-    matrix products and a solve."""
+    matrix products and a solve.  Plain loops, for the compiled step only (in plain
+    numpy the Pade approximant takes fewer calls, :func:`exact_step`)."""
     s = max(1, int(math.ceil(norm)))
     m = taylor_terms(norm / s)
     n = z.shape[0]
@@ -244,22 +245,17 @@ def expm_action(M: np.ndarray, z: np.ndarray, norm: float) -> np.ndarray:
         small = 0  # consecutive terms below the round-off of the sum: the series is done
         for k in range(1, m + 1):
             f = 1.0 / (s * k)
-            if USE_NUMBA:
-                t_max, x_max = 0.0, 0.0
-                for i in range(n):
-                    acc = 0.0
-                    for j in range(n):
-                        acc += M[i, j] * term[j]
-                    nxt[i] = acc * f
-                for i in range(n):
-                    term[i] = nxt[i]
-                    x[i] += nxt[i]
-                    t_max = max(t_max, abs(nxt[i]))
-                    x_max = max(x_max, abs(x[i]))
-            else:
-                term[:] = (M @ term) * f
-                x += term
-                t_max, x_max = np.abs(term).max(), np.abs(x).max()
+            t_max, x_max = 0.0, 0.0
+            for i in range(n):
+                acc = 0.0
+                for j in range(n):
+                    acc += M[i, j] * term[j]
+                nxt[i] = acc * f
+            for i in range(n):
+                term[i] = nxt[i]
+                x[i] += nxt[i]
+                t_max = max(t_max, abs(nxt[i]))
+                x_max = max(x_max, abs(x[i]))
             small = small + 1 if t_max <= EPS * x_max else 0
             if small == 2:
                 break

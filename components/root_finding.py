@@ -125,31 +125,44 @@ R_A, R_FA, R_DA, R_B, R_FB, R_DB, R_X, R_F, R_D, R_TOL, R_W1, R_W2, R_PENDING = 
 RATE_STATE_SIZE = 13
 
 
+@njit(inline="always")
+def hermite_cubic(fa: float, da: float, fb: float, db: float, h: float):
+    """``(c3, c2, c1)``: the cubic Hermite interpolant with values ``fa``, ``fb`` and
+    derivatives ``da``, ``db`` at 0 and ``h`` is ``((c3 th + c2) th + c1) th + fa``
+    in ``th = t / h``, th in [0, 1]."""
+    return 2.0 * (fa - fb) + h * (da + db), 3.0 * (fb - fa) - h * (2.0 * da + db), h * da
+
+
+@njit(inline="always")
+def hermite_critical_points(c3: float, c2: float, c1: float):
+    """``(count, th0, th1)``: the zeros of the derivative of the cubic of
+    :func:`hermite_cubic` (count 0, 1 or 2; th1 unset below 2)."""
+    if abs(c3) > 1e-300:
+        disc = c2 * c2 - 3.0 * c3 * c1
+        if disc >= 0.0:
+            sq = math.sqrt(disc)
+            return 2, (-c2 - sq) / (3.0 * c3), (-c2 + sq) / (3.0 * c3)
+        return 0, 0.0, 0.0
+    if abs(c2) > 1e-300:
+        return 1, -c1 / (2.0 * c2), 0.0
+    return 0, 0.0, 0.0
+
+
 @njit
 def hermite_first_root(fa: float, da: float, fb: float, db: float, h: float) -> float:
     """The first zero in ``(0, h]`` of the cubic Hermite interpolant with values
     ``fa > 0 >= fb`` and derivatives ``da``, ``db`` at 0 and ``h``."""
-    # p(th) = ((c3 th + c2) th + c1) th + fa on th in [0, 1]
-    c3 = 2.0 * (fa - fb) + h * (da + db)
-    c2 = 3.0 * (fb - fa) - h * (2.0 * da + db)
-    c1 = h * da
+    c3, c2, c1 = hermite_cubic(fa, da, fb, db, h)
     lo, hi = 0.0, 1.0
     # the first interval between critical points over which p changes sign
-    if abs(c3) > 1e-300:
-        disc = c2 * c2 - 3.0 * c3 * c1
-        if disc > 0.0:
-            sq = math.sqrt(disc)
-            r0, r1 = (-c2 - sq) / (3.0 * c3), (-c2 + sq) / (3.0 * c3)
-            if r0 > r1:
-                r0, r1 = r1, r0
-            for r in (r0, r1):
-                if lo < r < hi and ((c3 * r + c2) * r + c1) * r + fa <= 0.0:
-                    hi = r
-                    break
-    elif abs(c2) > 1e-300:
-        r = -c1 / (2.0 * c2)
-        if lo < r < hi and (c2 * r + c1) * r + fa <= 0.0:
+    n, r0, r1 = hermite_critical_points(c3, c2, c1)
+    if n == 2 and r0 > r1:
+        r0, r1 = r1, r0
+    for k in range(n):
+        r = r0 if k == 0 else r1
+        if lo < r < hi and ((c3 * r + c2) * r + c1) * r + fa <= 0.0:
             hi = r
+            break
     # Newton on the monotone piece, bisection when it leaves it
     th = 0.5 * (lo + hi)
     for _ in range(60):

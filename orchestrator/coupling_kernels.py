@@ -12,6 +12,7 @@ from __future__ import annotations
 import math
 
 from rubcosim.components.jit import njit
+from rubcosim.components.root_finding import hermite_critical_points, hermite_cubic
 
 PI_SAFETY = 0.9
 PI_MIN_FACTOR = 0.2
@@ -59,18 +60,9 @@ def hermite_extremum(ga: float, ra: float, gb: float, rb: float, h: float,
     """``(found, offset, value)`` of the interior extremum of the cubic Hermite
     interpolant (values ``ga, gb``, rates ``ra, rb`` over a step ``h``) that comes
     closest to crossing in ``direction`` (minimum for -1, maximum for +1)."""
-    a = 2.0 * (ga - gb) + h * (ra + rb)
-    b = 3.0 * (gb - ga) - h * (2.0 * ra + rb)
-    c = h * ra
+    a, b, c = hermite_cubic(ga, ra, gb, rb, h)
     d = ga
-    r0, r1, n = 0.0, 0.0, 0
-    if abs(a) > 1e-300:
-        disc = b * b - 3.0 * a * c
-        if disc >= 0.0:
-            sq = math.sqrt(disc)
-            r0, r1, n = (-b - sq) / (3.0 * a), (-b + sq) / (3.0 * a), 2
-    elif abs(b) > 1e-300:
-        r0, n = -c / (2.0 * b), 1
+    n, r0, r1 = hermite_critical_points(a, b, c)
     found, best_s, best_v = False, 0.0, 0.0
     for k in range(n):
         th = r0 if k == 0 else r1

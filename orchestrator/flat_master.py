@@ -172,11 +172,11 @@ def _message(master: Any, G: L.FlatGraph, S: L.FlatState) -> str:
     now = S.ms[L.MS_TIME]
     h, t = S.finfo[L.FI_H], S.finfo[L.FI_TIME]
     if code == L.FAIL_STEP:
-        why = fu.failure_reason(detail, S.ust[who], names[who])
+        why = fu.failure_reason(detail, S.ust[who], G.p[who], names[who])
         text = f"{names[who]}: step failed: {why}"
         return f"{text} (macro step {h:.3g} s from t = {t:.9g} s)" if h else text
     if code == L.FAIL_OUTPUT:
-        why = fu.failure_reason(detail, S.ust[who], names[who])
+        why = fu.failure_reason(detail, S.ust[who], G.p[who], names[who])
         text = f"{names[who]}: no outputs at t = {now:.9g} s: {why}"
         return f"{text} (macro step {h:.3g} s)" if h else text
     if code == L.FAIL_NOT_FINITE:

@@ -266,6 +266,9 @@ def test_bearings_output_their_force_laws():
     oil.set_inputs({"x": 2e-4})
     with pytest.raises(ValueError, match="touches the bearing wall"):
         oil.get_outputs()
+    # the message says how far: |journal| / clearance = hypot(2e-4, 3e-5) / 1.5e-4
+    with pytest.raises(ValueError, match=r"eccentricity ratio 1\.34825 >= 1"):
+        oil.get_outputs()
     lin = make_unit("bearing", "linear", stiffness=1e7, damping=100.0)
     lin.set_inputs({"x": 1e-5, "vy": 0.1})
     assert lin.get_outputs() == pytest.approx({"fx": -100.0, "fy": -10.0}, rel=1e-15)
