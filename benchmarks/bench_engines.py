@@ -36,6 +36,11 @@ Timing: at that rtol, one warm-up run (numba compilation excluded), then the med
 at least ``--repeats`` runs (more for runs that take milliseconds, up to ~0.3 s of
 runs).  The wall time covers the whole call (``simulate(...)`` or the scipy loop).
 
+The floor of ``fast`` (issue: "within 2x of its right-hand-side floor"): its
+right-hand-side calls per period times the cost of one compiled call, measured in a
+compiled loop of calls spread over a forcing period; the ratio of ``fast``'s time to
+that floor is what its step control, event location and bookkeeping add.
+
 Run from the repository root::
 
     .venv/bin/python benchmarks/bench_engines.py
@@ -60,6 +65,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import numba as nb
 import numpy as np
 from scipy.integrate import solve_ivp
 from stamp import stamp
@@ -68,6 +74,8 @@ from rubcosim.components.oscillator import free_acceleration, impact_velocity
 from rubcosim.components.rotor import jeffcott_force
 from rubcosim.components.stator import contact_geometry, rigid_impact
 from rubcosim.reference import System, build_system, make_unit, simulate
+from rubcosim.reference.history import full_rhs
+from rubcosim.reference.system import N_DELAYED
 
 REPO = Path(__file__).resolve().parents[1]
 DEFAULT_OUT = REPO / "benchmarks" / "results" / "engines.json"
@@ -412,6 +420,35 @@ def time_runs(
     return walls, last
 
 
+@nb.njit
+def _rhs_calls(y, p, ip, period, calls):  # pragma: no cover - compiled
+    """``calls`` right-hand sides of the free motion at times spread over one period
+    (so the forcing's cos is not the same call each time); returns a checksum."""
+    dy = np.empty_like(y)
+    yd = np.empty(N_DELAYED)
+    acc = 0.0
+    for k in range(calls):
+        full_rhs(period * k / calls, y, 0, p, ip, None, yd, dy)
+        acc += dy[-1]
+    return acc
+
+
+def rhs_cost(system: System, state: np.ndarray, repeats: int) -> dict[str, float]:
+    """Cost of one compiled right-hand-side call (s): median and range over ``repeats``
+    loops of 200,000 calls, at the case's state on its attractor."""
+    p = tuple(float(v) for v in system.p)
+    ip = tuple(int(v) for v in system.ip)
+    y = np.ascontiguousarray(state, dtype=float)
+    calls = 200_000
+    _rhs_calls(y, p, ip, system.forcing_period, 10)  # compile
+    costs = []
+    for _ in range(max(5, repeats)):
+        t0 = time.perf_counter()
+        _rhs_calls(y, p, ip, system.forcing_period, calls)
+        costs.append((time.perf_counter() - t0) / calls)
+    return {"median_s": statistics.median(costs), "min_s": min(costs), "max_s": max(costs)}
+
+
 def bench_case(case: Case, periods: int, repeats: int, target: float) -> dict[str, Any]:
     start = time.perf_counter()
     state = settle(case)
@@ -457,6 +494,13 @@ def bench_case(case: Case, periods: int, repeats: int, target: float) -> dict[st
         )
     ints = out["integrators"]
     fast = ints["fast"]["wall_median_s"]
+    # the floor of `fast`: its right-hand-side calls per period at the cost of one call
+    cost = rhs_cost(system, state, repeats)
+    floor = ints["fast"]["rhs_evaluations_per_period"] * cost["median_s"]
+    out["rhs_call_s"] = cost
+    out["fast_floor_per_period_s"] = floor
+    out["fast_over_floor"] = ints["fast"]["wall_per_period_s"] / floor
+    out["target_fast_over_floor"] = 2.0
     out["speedup_fast_vs_scipy_loop"] = ints["scipy_loop"]["wall_median_s"] / fast
     out["speedup_fast_vs_accurate"] = ints["accurate"]["wall_median_s"] / fast
     out["target_fast_vs_scipy_loop"] = 100.0
@@ -505,6 +549,24 @@ def markdown(report: dict[str, Any]) -> str:
         lines.append(
             f"| {case['name']} | {case['speedup_fast_vs_scipy_loop']:.3g}x | "
             f"{case['speedup_fast_vs_accurate']:.3g}x | {met} |"
+        )
+    lines.append("")
+    lines += [
+        "Distance of `fast` to its floor: its right-hand-side calls per period times the cost "
+        "of one compiled call (median of loops of 200,000 calls over one forcing period, "
+        "min-max in brackets).",
+        "",
+        "| case | rhs call | floor / period | `fast` / period | `fast` / floor | target (<= 2x) |",
+        "|---|---:|---:|---:|---:|---|",
+    ]
+    for case in report["cases"]:
+        c = case["rhs_call_s"]
+        ratio = case["fast_over_floor"]
+        lines.append(
+            f"| {case['name']} | {c['median_s'] * 1e9:.1f} ns ({c['min_s'] * 1e9:.1f}-"
+            f"{c['max_s'] * 1e9:.1f}) | {_fmt_time(case['fast_floor_per_period_s'])} | "
+            f"{_fmt_time(case['integrators']['fast']['wall_per_period_s'])} | {ratio:.2g}x | "
+            f"{'met' if ratio <= case['target_fast_over_floor'] else 'NOT met'} |"
         )
     lines.append("")
     for case in report["cases"]:

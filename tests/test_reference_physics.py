@@ -253,3 +253,43 @@ def test_event_count_is_bounded_and_reported():
     assert res.status == STATUS_EVENT_LIMIT
     assert "event limit" in res.message
     assert res.t_reached < 0.5
+
+
+@pytest.mark.parametrize("engine", ["fast", "accurate"])
+def test_rebounds_much_shorter_than_the_step_follow_the_closed_form(engine):
+    # A mass pushed onto a rigid barrier by a force that is constant over the run
+    # (forcing frequency 1e-6): from rest at x = 0.5, it reaches x = 1 at t = 1 with
+    # speed 1; each rebound (restitution r) flies 2 r^k, so impact k (k = 0, 1, ...) is
+    # at t_k = 1 + 2 r (1 - r^k) / (1 - r).  With r = 0.05 every flight is 20 times
+    # shorter than the one before, while the step after an impact keeps the length of
+    # the last accepted one (the motion is quadratic: no error): the return of the
+    # third and fourth rebounds lies 2**-11 to 2**-18 of a step in, found by the
+    # sampling of first_return.
+    r = 0.05
+    osc = make_unit(
+        "oscillator",
+        "impact_oscillator",
+        dict(
+            linear_stiffness=0.0,
+            forcing_amplitude=1.0,
+            forcing_frequency=1e-6,
+            barrier=1.0,
+            restitution=r,
+            x0=0.5,
+        ),
+    )
+    res = simulate(
+        build_system({"oscillator": osc}), 2.0, output_step=0.1, engine=engine, rtol=1e-10
+    )
+    assert res.ok
+    t_imp = res.events.t[res.events.of_kind("impact")]
+    # rebound k flies 2 r^(k+1) s and rises r^(2k+2) / 2 m: the flights rising far above
+    # the round-off of x (1e-16 m), k <= 3, against the closed form; the later ones
+    # (below 1e-13 m, and 1e-5 s, 1e-4 of the step they start) end the sequence at t_inf
+    k = np.arange(4)
+    expected = 1.0 + 2.0 * r * (1.0 - r**k) / (1.0 - r)
+    np.testing.assert_allclose(t_imp[:4], expected, rtol=0, atol=1e-12)
+    t_inf = 1.0 + 2.0 * r / (1.0 - r)
+    assert t_imp.shape[0] <= 14
+    assert np.all(np.abs(t_imp[4:] - t_inf) < 1e-6)
+    assert res.final_mode != MODE_FREE  # at rest on the barrier after the sequence

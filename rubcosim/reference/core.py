@@ -119,7 +119,7 @@ N_COUNTERS = 9
 MAX_SAME_TIME_EVENTS = 64
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, inline="always")
 def needs_dense(t_b, hist, g_a, side, dirs, rates, g_b, t_eval, cnt):
     """Whether a step needs its dense output: delay history, outputs or a possible event."""
     if hist is not None:

@@ -65,6 +65,29 @@ def pre_side(direction, side):
 
 
 RETURN_LEVELS = 60  # first_return samples down to 2**-60 of the step: below round-off of t
+# Below JUMP_LEVEL (samples closer to t_a than h / 2**JUMP_LEVEL) the dense output, a
+# polynomial of degree 7 in (t - t_a) / h, is linear to a part in 2**JUMP_LEVEL, and
+# so is the rate: first_return may skip up to MAX_JUMP levels at once there, as long
+# as the rate extrapolated from its last two samples stays above half its last value.
+JUMP_LEVEL = 6
+MAX_JUMP = 8
+
+
+@nb.njit(cache=True, inline="always")
+def _levels_to_skip(i, t_a, h, tp, rp, tm, rm):
+    """How many levels the rising scan of :func:`first_return` moves on from level
+    ``i`` (sample ``(tm, rm)``, the one before ``(tp, rp)``): 1 at coarse levels, else
+    up to ``MAX_JUMP`` while the rate's linear extrapolation stays above ``rm / 2``."""
+    if i <= JUMP_LEVEL:
+        return 1
+    slope = (rm - rp) / (tm - tp)
+    room = 0.5 * rm / -slope if slope < 0.0 else math.inf  # time until the rate halves
+    step = 1
+    while step < MAX_JUMP and i - step - 1 >= JUMP_LEVEL:
+        if math.ldexp(h, -(i - step - 1)) - (tm - t_a) > room:
+            break
+        step += 1
+    return step
 
 
 @nb.njit(cache=True)
@@ -77,21 +100,25 @@ def first_return(k, j, sgn, t_a, t_b, rate_a, fb, seg, ctx, hist, scratch):
     g rose, and turned an even number of times, if at all: it may have come back
     through zero (and even left again) inside the step, which neither end shows.
     A rebound much shorter than the step (chattering) is the usual case, so the
-    rate is sampled at ``t_a + h / 2**i``, i = RETURN_LEVELS..0; its first turn
-    (the top) starts the bracket, which ends at the first sample on the crossed
+    rate is sampled at ``t_a + h / 2**i``, i = RETURN_LEVELS..0 (skipping levels
+    where the rate is linear and far from zero: :func:`_levels_to_skip`); its first
+    turn (the top) starts the bracket, which ends at the first sample on the crossed
     side, or at the bottom of the return if g turns up again there.
     """
     h = t_b - t_a
     tp, rp = t_a, rate_a
     top = -1.0
     last = t_a  # latest point with sgn * g > 0 and no zero of it found before
-    for i in range(RETURN_LEVELS, -1, -1):
+    i = RETURN_LEVELS
+    while i >= 0:
         tm = t_b if i == 0 else t_a + math.ldexp(h, -i)
         if tm <= tp:
+            i -= 1
             continue
         rm = sgn * event_value(j, tm, seg, ctx, hist, scratch)
         if top < 0.0:
             if rm > 0.0:
+                i -= _levels_to_skip(i, t_a, h, tp, rp, tm, rm)
                 tp, rp = tm, rm
                 continue
             top = locate(j, sgn, tp, rp, tm, rm, seg, ctx, hist, scratch)
@@ -108,6 +135,7 @@ def first_return(k, j, sgn, t_a, t_b, rate_a, fb, seg, ctx, hist, scratch):
             break
         last = tm
         tp, rp = tm, rm
+        i -= 1
     if fb <= 0.0:
         return last, t_b
     return -1.0, -1.0
@@ -169,7 +197,7 @@ def find_event(t_a, t_b, seg, ctx, hist, scratch, g_a, side_a, dirs_a, rates_a, 
     return best_k, best_t
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, inline="always")
 def event_candidate(g_a, side_a, dirs_a, rates_a, g_b):
     """Whether the step may hold an event: a sign change, or a rate companion
     that changes sign (a possible grazing contact).  Cheap; no dense output."""
@@ -188,14 +216,14 @@ def event_candidate(g_a, side_a, dirs_a, rates_a, g_b):
     return False
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, inline="always")
 def step_end_events(t, y, mode, p, ip, hist, yd, g_b, dirs_b, rates_b):
     """Event functions at the end of a step (same mode as at its start)."""
     delayed_state(t, p, ip, hist, yd)
     events(t, y, yd, mode, p, ip, g_b, dirs_b, rates_b)
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, inline="always")
 def start_sides(t, y, mode, p, ip, hist, g, dirs, rates, side, yd, forced_slot, forced_side):
     """Event functions at the start of a step and the side each one is on."""
     delayed_state(t, p, ip, hist, yd)
@@ -209,7 +237,7 @@ def start_sides(t, y, mode, p, ip, hist, g, dirs, rates, side, yd, forced_slot, 
         g[forced_slot] = 0.0
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, inline="always")
 def sides_from(g, side):
     for k in range(N_EVENTS):
         side[k] = 1 if g[k] > 0.0 else (-1 if g[k] < 0.0 else 0)

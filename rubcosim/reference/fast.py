@@ -54,6 +54,15 @@ from .system import N_DELAYED, N_EVENTS
 from .tangent import tangent_after, tangent_step
 
 
+@nb.njit(cache=True, inline="always")
+def all_finite(y):
+    """Whether every component is finite (a loop: ``np.isfinite`` allocates an array)."""
+    for i in range(y.shape[0]):  # noqa: SIM110 - numba compiles no generator in all()
+        if not math.isfinite(y[i]):
+            return False
+    return True
+
+
 @nb.njit(cache=True)
 def initial_step(t0, y0, f0, t_bound, max_step, rtol, atol, mode, p, ip, hist, yd, y1, f1, cnt):
     """scipy's ``select_initial_step`` (Hairer, Norsett & Wanner II.4), order 7."""
@@ -102,7 +111,7 @@ def dense_coefficients(t_old, h, y_old, y_new, f_new, K, mode, p, ip, hist, yd, 
     dense_from_stages(h, y_old, y_new, f_new, K, F)
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, inline="always")
 def rk_step(t, y, f, h, mode, p, ip, hist, yd, K, y_new, f_new, ytmp, dy, cnt):
     n = y.shape[0]
     for i in range(n):
@@ -186,7 +195,7 @@ def integrate(y0, mode, t0, t_end, p, ip, tol, out, hist, dde, y_final, tan=None
                 cnt[C_REJECTED] += 1
             if cnt[C_STATUS] != STATUS_OK:
                 break
-            if not np.all(np.isfinite(y_new)):
+            if not all_finite(y_new):
                 cnt[C_STATUS] = STATUS_NONFINITE
                 break
             cnt[C_STEPS] += 1
