@@ -10,23 +10,88 @@ import pytest
 import rubcosim as rc
 from rubcosim.analysis.cellmap import sample_cells
 from rubcosim.analysis.maps import StroboscopicMap
-from rubcosim.analysis.trusted_ties import chain_fates, trusted
+from rubcosim.analysis.tie_passes import (
+    dependency_order,
+    fates_in_order,
+    safe_ties,
+    trust_in_order,
+)
 from rubcosim.cli import main
 from rubcosim.errors import ScenarioError
 
 SCENARIO = Path(__file__).resolve().parent.parent / "scenarios" / "feng_yang_attractors.toml"
 
 
-def test_chain_fates_and_trust_on_a_small_graph():
-    # 0 -> 1 -> 2 (anchor, fate 5); 3 -> 4 -> sink; 6 -> 6 (a cycle without an anchor)
+def _passes(nxt, anchor, near, sink):
+    """Fate, safety and trust by the one-pass functions over the dependency order."""
+    n = nxt.shape[0]
+    order, reached = dependency_order(nxt, anchor >= 0)
+    fate, safe, ok = np.empty(n, dtype=np.int64), np.empty(n, dtype=bool), np.empty(n, dtype=bool)
+    fates_in_order(order, reached, nxt, anchor, sink, -1, fate)
+    safe_ties(nxt, near, fate, safe)
+    trust_in_order(order, reached, nxt, anchor, safe, ok)
+    return order, fate, safe, ok
+
+
+def _walk(nxt, anchor, near, sink):
+    """The same by following every chain to its end (plain Python, a second method)."""
+    n = nxt.shape[0]
+    fate = np.empty(n, dtype=np.int64)
+    ok = np.empty(n, dtype=bool)
+    for s in range(n):
+        u, seen = s, set()
+        while u >= 0 and anchor[u] < 0 and u not in seen:
+            seen.add(u)
+            u = nxt[u]
+        fate[s] = sink if u < 0 else (anchor[u] if anchor[u] >= 0 else -1)
+    safe = np.array(
+        [nxt[u] < 0 or (fate[near[u, 0]] >= 0 and np.all(fate[near[u]] == fate[near[u, 0]]))
+         for u in range(n)]
+    )  # fmt: skip
+    for s in range(n):
+        u, seen, good = s, set(), True
+        while u >= 0 and anchor[u] < 0 and u not in seen:
+            seen.add(u)
+            good = good and bool(safe[u])
+            u = nxt[u]
+        ok[s] = good and (u < 0 or anchor[u] >= 0)
+    return fate, safe, ok
+
+
+def test_fates_and_trust_on_a_small_graph():
+    # 0 -> 1 -> 2 (anchor, fate 5); 3 -> 4 -> sink; 5 -> 0; 6 -> 6 (a cycle without an anchor)
     nxt = np.array([1, 2, 2, 4, -1, 0, 6])
     anchor = np.array([-1, -1, 5, -1, -1, -1, -1])
-    fate = chain_fates(nxt, anchor, 9)
+    near = np.array([[2, 1], [0, 3], [1, 0], [4, 3], [0, 0], [0, 1], [6, 6]])
+    order, fate, safe, ok = _passes(nxt, anchor, near, 9)
     assert fate.tolist() == [5, 5, 5, 9, 9, 5, -1]
-    safe = np.array([True, False, True, True, True, True, True])
-    ok = trusted(nxt, anchor >= 0, safe)
+    # 1's image lies between a sample going to 5 and one going to the sink: unsafe
+    assert safe.tolist() == [True, False, True, True, True, True, False]
     # 1's tie is unsafe: 1 and everything whose chain goes through it are not trusted
     assert ok.tolist() == [False, False, True, True, True, False, False]
+    position = np.argsort(order)
+    for u in range(7):  # each sample after its successor, the anchors' successors aside
+        if anchor[u] < 0 and nxt[u] >= 0 and u != 6:
+            assert position[nxt[u]] < position[u]
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_one_pass_fates_and_trust_agree_with_following_every_chain(seed):
+    # random functional graphs with sinks, anchors and cycles (some without an anchor)
+    rng = np.random.default_rng(seed)
+    n = 400
+    nxt = rng.integers(-1, n, n)
+    nxt[rng.random(n) < 0.05] = -1
+    anchor = np.where(rng.random(n) < 0.03, rng.integers(0, 3, n), -1)
+    near = rng.integers(0, n, (n, 3))
+    near[:, 1] = np.where(rng.random(n) < 0.7, near[:, 0], near[:, 1])
+    near[:, 2] = np.where(rng.random(n) < 0.7, near[:, 0], near[:, 2])
+    _, fate, safe, ok = _passes(nxt, anchor, near, 7)
+    f_ref, s_ref, ok_ref = _walk(nxt, anchor, near, 7)
+    assert np.array_equal(fate, f_ref)
+    assert np.array_equal(safe, s_ref)
+    assert np.array_equal(ok, ok_ref)
+    assert 0 < ok.sum() < n and (fate == -1).any()  # the draw covers every case
 
 
 def test_pursuit_sends_every_sample_where_direct_simulation_does():

@@ -43,89 +43,11 @@ from scipy.spatial import cKDTree
 from .attractors import Attractor, pursue
 from .cellmap import Grid
 from .maps import StroboscopicMap
+from .tie_passes import dependency_order, fates_in_order, safe_ties, trust_in_order
 
 K_NEAR = 8  # samples nearest to an image that must share one fate (16 per cell: ~0.4 cell)
 TRACK_MAX = 150  # periods a sample that is not trusted is followed exactly
 SINK = 1 << 30  # the sink's fate while attractors may still be added (len(known) at the end)
-
-
-@nb.njit(cache=True)
-def chain_fates(nxt: np.ndarray, anchor: np.ndarray, sink: int) -> np.ndarray:  # pragma: no cover
-    """Per node of the functional graph ``nxt`` (successor, < 0: the sink): the fate of
-    the first anchor down its chain (``anchor[u] >= 0`` for an anchor, else -1), ``sink``
-    when the chain leaves the region first, -1 on a cycle without an anchor."""
-    n = nxt.shape[0]
-    out = np.full(n, -2, dtype=np.int64)  # -2 new, -3 on the current walk
-    walk = np.empty(n, dtype=np.int64)
-    for s in range(n):
-        if out[s] != -2:
-            continue
-        top = 0
-        u = s
-        f = -1
-        while True:
-            if u < 0:
-                f = sink
-                break
-            if out[u] == -3:  # a cycle without an anchor
-                f = -1
-                break
-            if out[u] != -2:
-                f = out[u]
-                break
-            if anchor[u] >= 0:
-                f = anchor[u]
-                out[u] = f
-                break
-            out[u] = -3
-            walk[top] = u
-            top += 1
-            u = nxt[u]
-        for k in range(top):
-            out[walk[k]] = f
-    return out
-
-
-@nb.njit(cache=True)
-def trusted(
-    nxt: np.ndarray, anchored: np.ndarray, safe: np.ndarray
-) -> np.ndarray:  # pragma: no cover
-    """Per node: an anchor, or a safe tie to a trusted successor (the sink counts as
-    trusted: an image outside the region is exact); a cycle without an anchor is not."""
-    n = nxt.shape[0]
-    state = np.zeros(n, dtype=np.int8)  # 0 new, 1 on the current walk, 2 trusted, 3 not
-    walk = np.empty(n, dtype=np.int64)
-    for s in range(n):
-        if state[s] != 0:
-            continue
-        top = 0
-        u = s
-        ok = False
-        while True:
-            if u < 0:
-                ok = True
-                break
-            if state[u] == 1:
-                ok = False
-                break
-            if state[u] >= 2:
-                ok = state[u] == 2
-                break
-            if anchored[u]:
-                state[u] = 2
-                ok = True
-                break
-            state[u] = 1
-            walk[top] = u
-            top += 1
-            u = nxt[u]
-        for k in range(top - 1, -1, -1):
-            ok = ok and safe[walk[k]]
-            state[walk[k]] = 2 if ok else 3
-    out = np.empty(n, dtype=np.bool_)
-    for u in range(n):
-        out[u] = state[u] == 2
-    return out
 
 
 @nb.njit(cache=True)
@@ -189,22 +111,23 @@ def settle_samples(
     mapped one more period; a sample that only inherits distrust from one of them
     becomes trusted as soon as that one is decided, without a map of its own."""
     mapper = mapper or (lambda y: smap.map(y)[0])
-    nxt, near, tree = graph["next"], graph["near"], graph["tree"]
-    inside = nxt >= 0
-    near_in = np.ascontiguousarray(near[inside])
+    nxt, near, tree = graph["next"], np.ascontiguousarray(graph["near"]), graph["tree"]
+    n = points.shape[0]
     anchor = space.locate(points, known)
     heads = graph["cycles"]
     free_heads = anchor[heads] < 0
     anchor[heads[free_heads]] = np.where(heads_fate >= 0, heads_fate, SINK)[free_heads]
+    # every cycle now holds an anchor (its head): fate and trust are one pass each
+    order, reached = dependency_order(nxt, anchor >= 0)
+    fate, safe, ok = np.empty(n, dtype=np.int64), np.empty(n, dtype=bool), np.empty(n, dtype=bool)
     y = images.copy()  # the exact state of every sample tracked so far
-    done = np.zeros(points.shape[0], dtype=np.int64)  # periods each sample was tracked
+    done = np.zeros(n, dtype=np.int64)  # periods each sample was tracked
     stats = {"anchors": int(np.sum(anchor >= 0)), "tracked_periods": 0}
     for step in range(TRACK_MAX + 1):
-        fate = chain_fates(nxt, anchor, SINK)
-        fate[fate < 0] = SINK  # a cycle without an anchor cannot occur; never a label
-        safe = np.ones(points.shape[0], dtype=bool)
-        safe[inside] = agreed_fate(near_in, fate) >= 0
-        ok = trusted(nxt, anchor >= 0, safe)
+        # a cycle without an anchor cannot occur (SINK for it: never a label)
+        fates_in_order(order, reached, nxt, anchor, SINK, SINK, fate)
+        safe_ties(nxt, near, fate, safe)
+        trust_in_order(order, reached, nxt, anchor, safe, ok)
         roots = np.flatnonzero(~ok & ~safe & (anchor < 0))
         if step == 0:
             stats |= {"unsafe_ties": int(np.sum(~safe)), "untrusted": int(np.sum(~ok))}
@@ -215,14 +138,17 @@ def settle_samples(
             done[roots] += 1
             stats["tracked_periods"] += int(roots.size)
         decided = _decide(space, grid, tree, y[roots], fate, ok, known)
-        anchor[roots[decided >= 0]] = decided[decided >= 0]
+        new = roots[decided >= 0]
+        anchor[new] = decided[decided >= 0]
+        if not np.all(reached[new]):  # an anchor on a cycle that had none: order again
+            order, reached = dependency_order(nxt, anchor >= 0)
     left = np.flatnonzero(~ok & ~safe & (anchor < 0))
     if left.size:  # still undecided after TRACK_MAX periods: pursued, then classified
         pursued, more = pursue(smap, space, y[left], known)
         anchor[left] = np.where(pursued >= 0, pursued, SINK)
         stats["tracked_periods"] += int(more)
-        fate = chain_fates(nxt, anchor, SINK)
-        fate[fate < 0] = SINK
+        order, reached = dependency_order(nxt, anchor >= 0)
+        fates_in_order(order, reached, nxt, anchor, SINK, SINK, fate)
     stats |= {"tracked": int(np.sum(done > 0)), "tracked_then_pursued": int(left.size)}
     fate[fate == SINK] = len(known)  # pursuit may have found new attractors
     return fate, stats
