@@ -14,6 +14,7 @@ from rubcosim.analysis.tie_passes import (
     dependency_order,
     fates_in_order,
     safe_ties,
+    successor_positions,
     trust_in_order,
 )
 from rubcosim.cli import main
@@ -26,10 +27,11 @@ def _passes(nxt, anchor, near, sink):
     """Fate, safety and trust by the one-pass functions over the dependency order."""
     n = nxt.shape[0]
     order, reached = dependency_order(nxt, anchor >= 0)
+    succ = successor_positions(order, nxt)
     fate, safe, ok = np.empty(n, dtype=np.int64), np.empty(n, dtype=bool), np.empty(n, dtype=bool)
-    fates_in_order(order, reached, nxt, anchor, sink, -1, fate)
+    fates_in_order(order, reached, succ, anchor, sink, -1, fate)
     safe_ties(nxt, near, fate, safe)
-    trust_in_order(order, reached, nxt, anchor, safe, ok)
+    trust_in_order(order, reached, succ, anchor, safe, ok)
     return order, fate, safe, ok
 
 

@@ -57,7 +57,10 @@ class StateSpace:
         hit = np.zeros(states.shape[0], dtype=bool)
         finite = np.all(np.isfinite(z), axis=1)
         if np.any(finite):
-            d, _ = self._tree(a).query(z[finite], p=np.inf)
+            # only whether a point lies within the radius matters: the bound prunes the
+            # search (a farther state costs a few tree nodes, not a nearest-point search)
+            bound = np.nextafter(a.radius, np.inf)
+            d, _ = self._tree(a).query(z[finite], p=np.inf, distance_upper_bound=bound, workers=-1)
             hit[finite] = d <= a.radius
         return hit
 

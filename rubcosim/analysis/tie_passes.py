@@ -62,32 +62,54 @@ def dependency_order(nxt: np.ndarray, anchored: np.ndarray):  # pragma: no cover
 
 
 @nb.njit(cache=True)
-def fates_in_order(order, reached, nxt, anchor, sink, lost, fate):  # pragma: no cover
-    """``fate[u]``: ``anchor`` of the first anchor down u's chain, ``sink`` when the
-    chain leaves the region first, ``lost`` when it was not reached (no anchor on its
-    cycle)."""
-    for u in order:
-        if anchor[u] >= 0:
-            fate[u] = anchor[u]
-        elif not reached[u]:
-            fate[u] = lost
-        elif nxt[u] < 0:
-            fate[u] = sink
-        else:
-            fate[u] = fate[nxt[u]]
+def successor_positions(order: np.ndarray, nxt: np.ndarray) -> np.ndarray:  # pragma: no cover
+    """Position in ``order`` of each ordered sample's successor (-1: the sink), so the
+    passes below read the successor's value from a vector they fill in order."""
+    pos = np.empty(order.shape[0], dtype=np.int64)
+    for i in range(order.shape[0]):
+        pos[order[i]] = i
+    out = np.empty(order.shape[0], dtype=np.int64)
+    for i in range(order.shape[0]):
+        v = nxt[order[i]]
+        out[i] = pos[v] if v >= 0 else -1
+    return out
 
 
 @nb.njit(cache=True)
-def trust_in_order(order, reached, nxt, anchor, safe, ok):  # pragma: no cover - compiled
+def fates_in_order(order, reached, succ, anchor, sink, lost, fate):  # pragma: no cover
+    """``fate[u]``: ``anchor`` of the first anchor down u's chain, ``sink`` when the
+    chain leaves the region first, ``lost`` when it was not reached (no anchor on its
+    cycle); ``succ``: :func:`successor_positions`."""
+    along = np.empty(order.shape[0], dtype=np.int64)  # fate by position in the order
+    for i in range(order.shape[0]):
+        u = order[i]
+        if anchor[u] >= 0:
+            f = anchor[u]
+        elif not reached[u]:
+            f = lost
+        elif succ[i] < 0:
+            f = sink
+        else:
+            f = along[succ[i]]
+        along[i] = f
+        fate[u] = f
+
+
+@nb.njit(cache=True)
+def trust_in_order(order, reached, succ, anchor, safe, ok):  # pragma: no cover - compiled
     """``ok[u]``: u is an anchor, or its tie is ``safe`` and leads to the sink (exact)
     or to a trusted sample; never for a sample not reached."""
-    for u in order:
+    along = np.empty(order.shape[0], dtype=np.bool_)
+    for i in range(order.shape[0]):
+        u = order[i]
         if anchor[u] >= 0:
-            ok[u] = True
+            t = True
         elif not reached[u]:
-            ok[u] = False
+            t = False
         else:
-            ok[u] = safe[u] and (nxt[u] < 0 or ok[nxt[u]])
+            t = safe[u] and (succ[i] < 0 or along[succ[i]])
+        along[i] = t
+        ok[u] = t
 
 
 @nb.njit(cache=True)

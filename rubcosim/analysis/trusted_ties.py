@@ -43,7 +43,13 @@ from scipy.spatial import cKDTree
 from .attractors import Attractor, pursue
 from .cellmap import Grid
 from .maps import StroboscopicMap
-from .tie_passes import dependency_order, fates_in_order, safe_ties, trust_in_order
+from .tie_passes import (
+    dependency_order,
+    fates_in_order,
+    safe_ties,
+    successor_positions,
+    trust_in_order,
+)
 
 K_NEAR = 8  # samples nearest to an image that must share one fate (16 per cell: ~0.4 cell)
 TRACK_MAX = 150  # periods a sample that is not trusted is followed exactly
@@ -119,15 +125,16 @@ def settle_samples(
     anchor[heads[free_heads]] = np.where(heads_fate >= 0, heads_fate, SINK)[free_heads]
     # every cycle now holds an anchor (its head): fate and trust are one pass each
     order, reached = dependency_order(nxt, anchor >= 0)
+    succ = successor_positions(order, nxt)
     fate, safe, ok = np.empty(n, dtype=np.int64), np.empty(n, dtype=bool), np.empty(n, dtype=bool)
     y = images.copy()  # the exact state of every sample tracked so far
     done = np.zeros(n, dtype=np.int64)  # periods each sample was tracked
     stats = {"anchors": int(np.sum(anchor >= 0)), "tracked_periods": 0}
     for step in range(TRACK_MAX + 1):
         # a cycle without an anchor cannot occur (SINK for it: never a label)
-        fates_in_order(order, reached, nxt, anchor, SINK, SINK, fate)
+        fates_in_order(order, reached, succ, anchor, SINK, SINK, fate)
         safe_ties(nxt, near, fate, safe)
-        trust_in_order(order, reached, nxt, anchor, safe, ok)
+        trust_in_order(order, reached, succ, anchor, safe, ok)
         roots = np.flatnonzero(~ok & ~safe & (anchor < 0))
         if step == 0:
             stats |= {"unsafe_ties": int(np.sum(~safe)), "untrusted": int(np.sum(~ok))}
@@ -142,13 +149,15 @@ def settle_samples(
         anchor[new] = decided[decided >= 0]
         if not np.all(reached[new]):  # an anchor on a cycle that had none: order again
             order, reached = dependency_order(nxt, anchor >= 0)
+            succ = successor_positions(order, nxt)
     left = np.flatnonzero(~ok & ~safe & (anchor < 0))
     if left.size:  # still undecided after TRACK_MAX periods: pursued, then classified
         pursued, more = pursue(smap, space, y[left], known)
         anchor[left] = np.where(pursued >= 0, pursued, SINK)
         stats["tracked_periods"] += int(more)
         order, reached = dependency_order(nxt, anchor >= 0)
-        fates_in_order(order, reached, nxt, anchor, SINK, SINK, fate)
+        succ = successor_positions(order, nxt)
+        fates_in_order(order, reached, succ, anchor, SINK, SINK, fate)
     stats |= {"tracked": int(np.sum(done > 0)), "tracked_then_pursued": int(left.size)}
     fate[fate == SINK] = len(known)  # pursuit may have found new attractors
     return fate, stats
