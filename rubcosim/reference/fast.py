@@ -52,6 +52,7 @@ from .history import (
 )
 from .system import N_DELAYED, N_EVENTS
 from .tangent import tangent_after, tangent_step
+from .unowned import keep_alive, unowned
 
 
 @nb.njit(cache=True, inline="always")
@@ -144,13 +145,18 @@ def integrate(y0, mode, t0, t_end, p, ip, tol, out, hist, dde, y_final, tan=None
     t_eval, rec, evlog, cnt = out
     queue, qmeta = dde
     n = y0.shape[0]
-    y = y0.copy()
+    # The step loop works on views that numba does not reference-count (unowned);
+    # ``owners`` keeps the arrays themselves alive until the end of the function.
+    owners = (y0.copy(), workspace(n), np.empty(n), np.empty(N_DELAYED), new_event_state())
+    y, stages, y_next, yd, ev_state = owners
+    y, y_next, yd = unowned(y), unowned(y_next), unowned(yd)
+    K, F, f, f_new = unowned(stages[0]), unowned(stages[1]), unowned(stages[2]), unowned(stages[3])
+    y_new, ytmp, dy = unowned(stages[4]), unowned(stages[5]), unowned(stages[6])
+    g_a, side, dirs, rates = (unowned(ev_state[0]), unowned(ev_state[1]),
+                              unowned(ev_state[2]), unowned(ev_state[3]))  # fmt: skip
+    g_b, dirs_b, rates_b = unowned(ev_state[4]), unowned(ev_state[5]), unowned(ev_state[6])
     t = t0
-    K, F, f, f_new, y_new, ytmp, dy = workspace(n)
-    y_next = np.empty(n)
     work = new_workspace(n, rec.shape[1])
-    yd = np.empty(N_DELAYED)
-    g_a, side, dirs, rates, g_b, dirs_b, rates_b = new_event_state()
     ev = (g_a, side, dirs, rates, g_b)  # what after_step reads and updates
     forced_slot, forced_side = -1, 0
     h_last = 0.0
@@ -228,4 +234,5 @@ def integrate(y0, mode, t0, t_end, p, ip, tol, out, hist, dde, y_final, tan=None
             for i in range(n):
                 f[i] = f_new[i]
     y_final[:] = y
+    keep_alive(owners)
     return t, mode
