@@ -71,6 +71,9 @@ RETURN_LEVELS = 60  # first_return samples down to 2**-60 of the step: below rou
 # as the rate extrapolated from its last two samples stays above half its last value.
 JUMP_LEVEL = 6
 MAX_JUMP = 8
+# 2**-i for the levels: a product by an exact power of two is math.ldexp's result, and
+# a table lookup is cheaper than the libm call
+HALVINGS = np.ldexp(1.0, -np.arange(RETURN_LEVELS + 1))
 
 
 @nb.njit(cache=True, inline="always")
@@ -84,7 +87,7 @@ def _levels_to_skip(i, t_a, h, tp, rp, tm, rm):
     room = 0.5 * rm / -slope if slope < 0.0 else math.inf  # time until the rate halves
     step = 1
     while step < MAX_JUMP and i - step - 1 >= JUMP_LEVEL:
-        if math.ldexp(h, -(i - step - 1)) - (tm - t_a) > room:
+        if h * HALVINGS[i - step - 1] - (tm - t_a) > room:
             break
         step += 1
     return step
@@ -111,7 +114,7 @@ def first_return(k, j, sgn, t_a, t_b, rate_a, fb, seg, ctx, hist, scratch):
     last = t_a  # latest point with sgn * g > 0 and no zero of it found before
     i = RETURN_LEVELS
     while i >= 0:
-        tm = t_b if i == 0 else t_a + math.ldexp(h, -i)
+        tm = t_b if i == 0 else t_a + h * HALVINGS[i]
         if tm <= tp:
             i -= 1
             continue

@@ -147,20 +147,22 @@ def integrate(y0, mode, t0, t_end, p, ip, tol, out, hist, dde, y_final, tan=None
     n = y0.shape[0]
     # The step loop works on views that numba does not reference-count (unowned);
     # ``owners`` keeps the arrays themselves alive until the end of the function.
-    owners = (y0.copy(), workspace(n), np.empty(n), np.empty(N_DELAYED), new_event_state())
-    y, stages, y_next, yd, ev_state = owners
+    owners = (y0.copy(), workspace(n), np.empty(n), np.empty(N_DELAYED), new_event_state(),
+              new_workspace(n, rec.shape[1]), np.empty(rec.shape[1]))  # fmt: skip
+    y, stages, y_next, yd, ev_state, event_work, obuf = owners
     y, y_next, yd = unowned(y), unowned(y_next), unowned(yd)
     K, F, f, f_new = unowned(stages[0]), unowned(stages[1]), unowned(stages[2]), unowned(stages[3])
     y_new, ytmp, dy = unowned(stages[4]), unowned(stages[5]), unowned(stages[6])
     g_a, side, dirs, rates = (unowned(ev_state[0]), unowned(ev_state[1]),
                               unowned(ev_state[2]), unowned(ev_state[3]))  # fmt: skip
     g_b, dirs_b, rates_b = unowned(ev_state[4]), unowned(ev_state[5]), unowned(ev_state[6])
+    work = (unowned(event_work[0]), unowned(event_work[1]), unowned(event_work[2]),
+            unowned(event_work[3]), unowned(event_work[4]), unowned(event_work[5]))  # fmt: skip
+    obuf = unowned(obuf)
     t = t0
-    work = new_workspace(n, rec.shape[1])
     ev = (g_a, side, dirs, rates, g_b)  # what after_step reads and updates
     forced_slot, forced_side = -1, 0
     h_last = 0.0
-    obuf = np.empty(rec.shape[1])
     cnt[C_EVAL] = record_point(t, y, mode, p, ip, hist, t_eval, 0, rec, yd, obuf)
     while t < t_end and cnt[C_STATUS] == STATUS_OK:
         bound = next_breakpoint(t, t_end, p, ip, queue, qmeta)
