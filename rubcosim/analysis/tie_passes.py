@@ -112,18 +112,23 @@ def trust_in_order(order, reached, succ, anchor, safe, ok):  # pragma: no cover 
         ok[u] = t
 
 
+@nb.njit(cache=True, inline="always")
+def shared_fate(near, r, fate, ok):  # pragma: no cover - compiled
+    """The fate every sample of row ``r`` of ``near`` has (and every one of them ``ok``,
+    unless ``ok`` is None), else -1."""
+    f = fate[near[r, 0]]
+    for c in range(near.shape[1]):
+        u = near[r, c]
+        if fate[u] != f:
+            return -1
+        if ok is not None and not ok[u]:
+            return -1
+    return f
+
+
 @nb.njit(cache=True)
 def safe_ties(nxt, near, fate, safe):  # pragma: no cover - compiled
     """``safe[u]``: the samples nearest to u's image (row ``near[u]``) all have one fate
     (>= 0); an image outside the region (``nxt[u] < 0``) is exact, so its tie is safe."""
     for u in range(nxt.shape[0]):
-        if nxt[u] < 0:
-            safe[u] = True
-            continue
-        f = fate[near[u, 0]]
-        ok = f >= 0
-        for c in range(1, near.shape[1]):
-            if fate[near[u, c]] != f:
-                ok = False
-                break
-        safe[u] = ok
+        safe[u] = nxt[u] < 0 or shared_fate(near, u, fate, None) >= 0

@@ -47,6 +47,7 @@ from .tie_passes import (
     dependency_order,
     fates_in_order,
     safe_ties,
+    shared_fate,
     successor_positions,
     trust_in_order,
 )
@@ -57,24 +58,13 @@ SINK = 1 << 30  # the sink's fate while attractors may still be added (len(known
 
 
 @nb.njit(cache=True)
-def _agreed(near: np.ndarray, fate: np.ndarray, ok: np.ndarray) -> np.ndarray:  # pragma: no cover
+def agreed_fate(near, fate, ok):  # pragma: no cover - compiled
+    """Per row of neighbour indices ``near``: the fate all of them share, all ``ok``,
+    else -1."""
     out = np.empty(near.shape[0], dtype=np.int64)
     for r in range(near.shape[0]):
-        f = fate[near[r, 0]]
-        for c in range(near.shape[1]):
-            u = near[r, c]
-            if fate[u] != f or not ok[u]:
-                f = -1
-                break
-        out[r] = f
+        out[r] = shared_fate(near, r, fate, ok)
     return out
-
-
-def agreed_fate(near: np.ndarray, fate: np.ndarray, ok: np.ndarray | None = None) -> np.ndarray:
-    """Per row of neighbour indices ``near``: the fate all of them share (and all ``ok``,
-    when given), else -1."""
-    ok = np.ones(fate.shape[0], dtype=np.bool_) if ok is None else ok
-    return _agreed(np.ascontiguousarray(near), fate, ok)
 
 
 def _decide(space: Any, grid: Grid, tree: cKDTree, y: np.ndarray, fate, ok, known) -> Any:
@@ -90,7 +80,7 @@ def _decide(space: Any, grid: Grid, tree: cKDTree, y: np.ndarray, fate, ok, know
     free = inside[hood < 0]
     if free.size:
         _, near = tree.query(y[free] / np.array([grid.dx, grid.dv]), k=K_NEAR, workers=-1)
-        decided[free] = agreed_fate(near, fate, ok)
+        decided[free] = agreed_fate(np.ascontiguousarray(near), fate, ok)
     return decided
 
 
