@@ -42,7 +42,7 @@ def _run(Y, p, ip, period, rtol, atol, n_periods, split, tot):
     cnt = np.zeros(N_COUNTERS, dtype=np.int64)
     y_end = np.empty(n)
     out = (np.empty(0), np.empty((0, 0)), evlog, cnt)
-    dde = (np.zeros(1), np.zeros(3, dtype=np.int64))
+    dde = (np.zeros((1, 2)), np.zeros(4, dtype=np.int64))
     for j in range(Y.shape[0]):
         y = Y[j].copy()
         mode = 0

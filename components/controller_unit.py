@@ -1,19 +1,33 @@
-"""Delayed-feedback controller unit: the disc state in, the Pyragas force out.
+"""Delayed-feedback controller unit: the disc state in, the Pyragas or ETDAS force out.
 
 The unit keeps the fed-back signal's history as samples taken at the
-communication points (its hidden state) and evaluates ``z(t - tau(t))`` by
-cubic Lagrange interpolation through the four samples around it; before the
-first sample the history is the first sample (constant initial function).
-The force depends on the current input directly (feedthrough).
+communication points (its hidden state): rows ``(t, zx, zy, Sx, Sy)`` with the
+ETDAS filter ``S(t) = (1 - R) z(t - tau) + R S(t - tau)`` beside the signal.
+It evaluates ``z`` and ``S`` at ``t - tau(t)`` by cubic Lagrange interpolation
+through the four samples around it; before the first sample the history is
+the first sample (constant initial function, whose filter is itself).  The
+force depends on the current input directly (feedthrough).
 """
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 import numpy as np
 
-from .controller import CONTROLLER_PARAMS, base_delay, delay_at, feedback_force
+from .controller import (
+    CONTROLLER_PARAMS,
+    MODULATION_SHAPES,
+    PIECE_TOL,
+    base_delay,
+    delay_at,
+    delayed_arrivals,
+    etdas_blend,
+    feedback_force,
+    piece_index,
+    switch_interval,
+)
 from .declaration import Derived, FmuIdentity, Need, UnitType, Wire
 from .parameters import nonnegative
 from .unit import Unit, planar_motion, real_signal
@@ -39,14 +53,34 @@ def lagrange_cubic(ts: np.ndarray, zs: np.ndarray, tq: float) -> np.ndarray:
     return out
 
 
+def interpolate(samples: np.ndarray, tq: float, side: str = "right") -> np.ndarray:
+    """The sampled columns (all but time) at ``tq``: cubic Lagrange through the four
+    samples around it, within the continuous piece holding ``tq`` (two samples at
+    one time mark a jump: at that time ``side="left"`` takes the piece ending
+    there, the left limit); the first sample before the first time."""
+    ts = samples[:, 0]
+    if tq < ts[0] or (tq == ts[0] and (side == "left" or ts.size == 1 or ts[1] != ts[0])):
+        return samples[0, 1:]
+    jumps = np.flatnonzero(ts[1:] == ts[:-1]) + 1
+    k = int(np.searchsorted(jumps, int(np.searchsorted(ts, tq, side=side)), side="right"))
+    start = jumps[k - 1] if k > 0 else 0
+    stop = jumps[k] if k < jumps.size else ts.size
+    piece = samples[start:stop]
+    i = int(np.searchsorted(piece[:, 0], tq))
+    lo = max(min(i - 2, piece.shape[0] - 4), 0)
+    window = piece[lo : lo + 4]
+    return lagrange_cubic(window[:, 0], window[:, 1:], tq)
+
+
 class DelayedFeedbackUnit(Unit):
-    """Pyragas controller ``u = K (z(t - tau) - z(t))`` on both axes."""
+    """Delayed-feedback controller ``u = K (S(t) - z(t))`` on both axes, where
+    ``S = (1 - R) z(t - tau) + R S(t - tau)`` (R = 0: Pyragas, ``S = z(t - tau)``)."""
 
     role = "controller"
     type_name = "delayed_feedback"
     # a zero-length step records the signal's left limit before a jump (see _advance)
     records_left_limits = True
-    summary = "delayed-feedback (Pyragas) controller, fixed or modulated delay"
+    summary = "delayed-feedback controller (Pyragas or ETDAS), fixed or modulated delay"
     params_spec = (*CONTROLLER_PARAMS, SPEED)
     inputs = planar_motion("disc")
     outputs = (
@@ -59,8 +93,9 @@ class DelayedFeedbackUnit(Unit):
         self.tau0 = base_delay(params, params["speed"], self.name, f"{self.name}.speed")
 
     def _initial_state(self) -> dict[str, Any]:
-        # rows (t, zx, zy); empty until the first step records a sample
-        return {"history": np.zeros((0, 3))}
+        # rows (t, zx, zy, Sx, Sy); empty until the first step records a sample, whose
+        # time is "start": the constant initial function meets the signal there with a kink
+        return {"history": np.zeros((0, 5)), "start": math.nan}
 
     def _signal(self) -> tuple[float, float]:
         if self.params["feedback"] == "position":
@@ -69,7 +104,61 @@ class DelayedFeedbackUnit(Unit):
 
     def _delay(self, t: float) -> float:
         q = self.params
-        return delay_at(t, self.tau0, q["modulation_amplitude"], q["modulation_frequency"])
+        shape = MODULATION_SHAPES.index(q["modulation_shape"])
+        return delay_at(
+            t,
+            self.tau0,
+            q["modulation_amplitude"],
+            q["modulation_frequency"],
+            shape,
+            q["modulation_seed"],
+        )
+
+    def _filter(
+        self, samples: np.ndarray, t: float, tq: float | None = None, side: str = "right"
+    ) -> tuple[float, float]:
+        """The ETDAS filter S(t) from the samples before ``t`` (looked up at ``tq``,
+        default ``t - tau(t)``, on ``side`` of a jump there)."""
+        memory = self.params["memory"]
+        if samples.shape[0] == 0:  # constant initial function: S = z
+            return self._signal()
+        v = interpolate(samples, t - self._delay(t) if tq is None else tq, side)
+        return etdas_blend(memory, v[0], v[2]), etdas_blend(memory, v[1], v[3])
+
+    def _filter_jumps(self, hist: np.ndarray, t: float) -> np.ndarray:
+        """Rows for the jumps and kinks of the filter between the last sample and
+        ``t``: two rows (left and right limit) at each time a recorded jump, or the
+        start, arrives (``s - tau(s)`` = its time) and at each jump of a sawtooth or
+        telegraph delay, so that no interpolation stencil spans them."""
+        if hist.shape[0] == 0:
+            return hist
+        q = self.params
+        shape = MODULATION_SHAPES.index(q["modulation_shape"])
+        eps, nu = q["modulation_amplitude"], q["modulation_frequency"]
+        t_last = hist[-1, 0]
+        ts = hist[:, 0]
+        # (arrival time s, delayed time on the left, on the right, lookup side on the left)
+        found: list[tuple[float, float, float, str]] = []
+        out = np.empty(4)
+        for j in np.unique(np.append(ts[1:][ts[1:] == ts[:-1]], self.state["start"])):
+            n = delayed_arrivals(j, self.tau0, eps, nu, shape, q["modulation_seed"], out)
+            found += [(s, j, j, "left") for s in out[:n] if t_last < s < t]
+        width = switch_interval(nu, shape) if eps > 0.0 else math.inf
+        m = piece_index(t_last, width) + 1.0 if width < math.inf else math.inf
+        while m * width < t:
+            s = m * width
+            before = (m - 2.0 * PIECE_TOL) * width  # a time in the previous piece
+            found.append((s, s - self._delay(before), s - self._delay(s), "right"))
+            m += 1.0
+        rows = []
+        zx, zy = self._signal()
+        for s, tq_left, tq_right, side in sorted(found):
+            known = np.vstack((hist, rows)) if rows else hist
+            z = interpolate(np.vstack((known, [[t, zx, zy, np.nan, np.nan]])), s)
+            left = self._filter(known, s, tq_left, side)
+            right = self._filter(known, s, tq_right, "right")
+            rows += [[s, z[0], z[1], *left], [s, z[0], z[1], *right]]
+        return np.array(rows).reshape(-1, 5)
 
     def _advance(self, t: float, h: float) -> None:
         hist = self.state["history"]
@@ -80,29 +169,31 @@ class DelayedFeedbackUnit(Unit):
         # before an impact reset it.  Both stay, and no interpolation stencil spans them.
         if hist.shape[0] and hist[-1, 0] == t and hist[-1, 1] == zx and hist[-1, 2] == zy:
             hist = hist[:-1]
-        keep = t + h - self.tau0 - self.params["modulation_amplitude"]
-        # keep three samples before the oldest time still needed, for the stencil
+        if math.isnan(self.state["start"]):
+            self.state["start"] = t
+        if self.params["memory"] == 0.0:
+            sx, sy = zx, zy  # not used: the filter is z(t - tau) itself
+        else:
+            hist = np.vstack((hist, self._filter_jumps(hist[hist[:, 0] < t], t)))
+            sx, sy = self._filter(hist[hist[:, 0] < t], t)
+        # the oldest time still needed: the next step's outputs look back to t + h - tau,
+        # its filter's jumps arrive from jumps after t - tau (the longest delay);
+        # keep three samples before it, for the stencil
+        keep = t - self.tau0 - self.params["modulation_amplitude"]
         first = max(int(np.searchsorted(hist[:, 0], keep)) - 3, 0)
-        self.state["history"] = np.vstack((hist[first:], [[t, zx, zy]]))
+        if 0 < first < hist.shape[0] and hist[first, 0] == hist[first - 1, 0]:
+            first -= 1  # never split the two samples of a jump
+        self.state["history"] = np.vstack((hist[first:], [[t, zx, zy, sx, sy]]))
 
     def _delayed(self, tq: float) -> tuple[float, float]:
+        """The fed-back delayed signal: z(tq) (Pyragas) or (1 - R) z(tq) + R S(tq)."""
         hist = self.state["history"]
+        before = hist[hist[:, 0] < self.time]
         zx, zy = self._signal()
-        samples = np.vstack((hist[hist[:, 0] < self.time], [[self.time, zx, zy]]))
-        if tq <= samples[0, 0]:
-            return samples[0, 1], samples[0, 2]
-        ts = samples[:, 0]
-        # the continuous piece holding tq: between jumps (two samples at one time)
-        jumps = np.flatnonzero(ts[1:] == ts[:-1]) + 1
-        k = int(np.searchsorted(jumps, int(np.searchsorted(ts, tq, side="right")), side="right"))
-        start = jumps[k - 1] if k > 0 else 0
-        stop = jumps[k] if k < jumps.size else ts.size
-        piece = samples[start:stop]
-        i = int(np.searchsorted(piece[:, 0], tq))
-        lo = max(min(i - 2, piece.shape[0] - 4), 0)
-        window = piece[lo : lo + 4]
-        z = lagrange_cubic(window[:, 0], window[:, 1:], tq)
-        return z[0], z[1]
+        sx, sy = (zx, zy) if self.params["memory"] == 0.0 else self._filter(before, self.time)
+        v = interpolate(np.vstack((before, [[self.time, zx, zy, sx, sy]])), tq)
+        memory = self.params["memory"]
+        return etdas_blend(memory, v[0], v[2]), etdas_blend(memory, v[1], v[3])
 
     def _outputs(self) -> dict[str, float]:
         t = self.time
@@ -133,5 +224,5 @@ DELAYED_FEEDBACK = UnitType(
         ),
     ),
     wiring=tuple(Wire(s, (f"rotor.{s}",)) for s in ("x", "y", "vx", "vy")),
-    kernels=(delay_at, feedback_force),
+    kernels=(delay_at, feedback_force, etdas_blend),
 )

@@ -112,20 +112,27 @@ def next_step(err, h, rejected):
 
 
 @njit(inline="always")
+def dense_poly(x, F, c):
+    """The polynomial part of scipy's DOP853 dense output of component ``c`` at the
+    step fraction ``x = (t - t_old) / h`` (the output is ``y_old[c]`` plus this)."""
+    npow = F.shape[0]
+    acc = 0.0
+    for i in range(npow):
+        acc += F[npow - 1 - i, c]
+        if i % 2 == 0:
+            acc *= x
+        else:
+            acc *= 1.0 - x
+    return acc
+
+
+@njit(inline="always")
 def dense_eval(t_old, h, y_old, F, t, out, ncomp):
     """scipy's DOP853 dense output of the step ``[t_old, t_old + h]`` (coefficients
     ``F`` from :func:`dense_from_stages`) at time ``t``, first ``ncomp`` components."""
     x = (t - t_old) / h
-    npow = F.shape[0]
     for c in range(ncomp):
-        acc = 0.0
-        for i in range(npow):
-            acc += F[npow - 1 - i, c]
-            if i % 2 == 0:
-                acc *= x
-            else:
-                acc *= 1.0 - x
-        out[c] = acc + y_old[c]
+        out[c] = dense_poly(x, F, c) + y_old[c]
 
 
 @njit

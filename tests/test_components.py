@@ -13,7 +13,7 @@ from rubcosim.components.bearing import (
     oilfilm_force,
     oilfilm_sigma,
 )
-from rubcosim.components.controller import delay_at, feedback_force
+from rubcosim.components.controller import SHAPE_SINE, delay_at, feedback_force
 from rubcosim.components.oscillator import elastic_stop_force, free_acceleration, impact_velocity
 from rubcosim.components.rotor import free_whirl, jeffcott_force, shaft_force, unbalance_force
 from rubcosim.components.stator import (
@@ -178,8 +178,8 @@ def test_oilfilm_dimensional_scaling():
 
 
 def test_controller_kernels():
-    assert delay_at(0.0, 0.1, 0.01, 5.0) == pytest.approx(0.1)
-    assert delay_at(math.pi / 10, 0.1, 0.01, 5.0) == pytest.approx(0.11)
+    assert delay_at(0.0, 0.1, 0.01, 5.0, SHAPE_SINE, 0) == pytest.approx(0.1)
+    assert delay_at(math.pi / 10, 0.1, 0.01, 5.0, SHAPE_SINE, 0) == pytest.approx(0.11)
     assert feedback_force(2.0, 1.0, 1.0) == 0.0
     assert feedback_force(2.0, 1.0, 1.5) == pytest.approx(1.0)
 

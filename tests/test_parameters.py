@@ -493,7 +493,10 @@ def test_controller_modulation_product_must_be_below_one():
 
 
 def test_controller_delay_must_be_positive():
-    raises_param(["controller.delay", "> 0"], build_system, controller_system(delay=0.0))
+    def negative_delay():
+        return build_system(controller_system(delay=-0.01))
+
+    raises_param(["controller.delay", "[0, inf]"], negative_delay)
 
 
 def test_controller_delay_periods_needs_speed():

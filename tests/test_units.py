@@ -296,7 +296,7 @@ def test_controller_force_follows_the_delayed_signal():
 
 
 def test_base_delay_checks():
-    p = dict(delay=-1.0, delay_periods=2, modulation_amplitude=0.0, modulation_frequency=0.0)
+    p = dict(delay=0.0, delay_periods=2, modulation_amplitude=0.0, modulation_frequency=0.0)
     assert base_delay(p, 100.0) == pytest.approx(4 * math.pi / 100.0)
     with pytest.raises(ParameterError, match="rotor.speed"):
         base_delay(p, 0.0)

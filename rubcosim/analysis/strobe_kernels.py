@@ -79,8 +79,8 @@ def strobe_run(
     t_eval = np.empty(0)
     rec = np.empty((0, 0))
     evlog = new_event_log(max_events, n)
-    queue = np.zeros(1)
-    qmeta = np.zeros(3, dtype=np.int64)
+    queue = np.zeros((1, 2))  # no delay: an empty breakpoint queue
+    qmeta = np.zeros(4, dtype=np.int64)
     dde = (queue, qmeta)
     cnt = np.zeros(N_COUNTERS, dtype=np.int64)
     tol = (rtol, atol, max_step)

@@ -42,7 +42,7 @@ def _buffers(n, max_events):
         new_event_log(max_events, n),
         np.zeros(N_COUNTERS, dtype=np.int64),
     )
-    dde = (np.zeros(1), np.zeros(3, dtype=np.int64))
+    dde = (np.zeros((1, 2)), np.zeros(4, dtype=np.int64))
     return out, dde
 
 

@@ -14,12 +14,11 @@ import numpy as np
 
 from .event_search import event_candidate, find_event, sides_from
 from .history import (
-    delayed_arrival,
     delayed_state,
     dense_eval,
     history_push,
     max_history_age,
-    queue_push,
+    push_arrivals,
 )
 from .system import KIND_IMPACT, N_DELAYED, N_EVENTS, apply_event, outputs
 
@@ -156,7 +155,7 @@ def after_step(t_a, t_b, y_old, y_b, F, mode, p, ip, hist, dde, ev, out, y_out, 
         t_a, t_hi, t_a, h, y_old, F, mode, p, ip, hist, t_eval, cnt[C_EVAL], rec, ybuf, yd, obuf
     )
     if hist is not None:
-        history_push(hist, t_a, h, t_hi, y_old, F, t_hi - max_history_age(p, ip) - h)
+        history_push(hist, t_a, h, t_hi, y_old, F, t_hi - max_history_age(p, ip) - h, p, ip)
     if k < 0:
         for i in range(n):
             y_out[i] = y_b[i]
@@ -179,8 +178,11 @@ def after_step(t_a, t_b, y_old, y_b, F, mode, p, ip, hist, dde, ev, out, y_out, 
     cnt[C_EVENTS] += 1
     if kind == KIND_IMPACT:
         cnt[C_IMPACTS] += 1
-        if hist is not None:
-            queue_push(queue, qmeta, delayed_arrival(te, p))
+    if hist is not None:
+        # an impact makes the disc state jump, any other event (contact on or off, a
+        # slip or a stick) its derivative: the delayed term inherits the jump or kink
+        # one delay later, and the ETDAS filter, fitted per step, must not straddle it
+        push_arrivals(queue, qmeta, te, 1.0, p, ip)
     if te - t_a <= 4.0 * np.finfo(np.float64).eps * max(1.0, abs(te)):
         cnt[C_SAME_TIME] += 1
     else:

@@ -32,6 +32,8 @@ from .history import (
     HM_OVERFLOW,
     Q_DROPPED,
     new_history,
+    new_queue,
+    push_arrivals,
 )
 from .system import KIND_NAMES
 
@@ -162,8 +164,11 @@ def simulate(
         evlog = new_event_log(max_events, n)
         # No controller, no history: the engines compile a delay-free variant.
         hist = new_history(capacity, t_start, system.y0) if system.has_delay else None
-        queue = np.zeros(capacity if system.has_delay else 1)
-        qmeta = np.zeros(3, dtype=np.int64)
+        queue, qmeta = new_queue(capacity if system.has_delay else 1)
+        if system.has_delay:
+            # the constant initial function meets the motion at t_start with a kink
+            # (its derivative is zero): it reaches the delayed term one delay later
+            push_arrivals(queue, qmeta, t_start, 1.0, system.p, system.ip)
         cnt = np.zeros(N_COUNTERS, dtype=np.int64)
         y_final = np.empty(n)
         t0 = time.perf_counter()

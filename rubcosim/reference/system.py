@@ -86,9 +86,16 @@ def control_active(t: float, p: np.ndarray, ip: np.ndarray) -> bool:
 
 
 @nb.njit(cache=True, inline="always")
-def current_delay(t: float, p: np.ndarray) -> float:
-    eps, nu = p[P_CONTROLLER_MODULATION_AMPLITUDE], p[P_CONTROLLER_MODULATION_FREQUENCY]
-    return delay_at(t, p[P_CONTROLLER_BASE_DELAY], eps, nu)
+def current_delay(t: float, p: np.ndarray, ip: np.ndarray) -> float:
+    """The controller's delay tau(t), s."""
+    return delay_at(
+        t,
+        p[P_CONTROLLER_BASE_DELAY],
+        p[P_CONTROLLER_MODULATION_AMPLITUDE],
+        p[P_CONTROLLER_MODULATION_FREQUENCY],
+        ip[IP_CONTROLLER_MODULATION_SHAPE],
+        int(p[P_CONTROLLER_MODULATION_SEED]),
+    )
 
 
 @nb.njit(cache=True, inline="always")
