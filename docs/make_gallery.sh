@@ -44,6 +44,16 @@ $R run scenarios/jeffcott_chaos_control.toml --set controller.gain=0.0 \
     --out "$OUT/chaos_uncontrolled"
 $R run scenarios/jeffcott_chaos_control.toml --out "$OUT/chaos_control"
 
+# 9. Chaos control studies of the rigid and the penalty stator: the uncontrolled Lyapunov
+#    spectrum, the unstable period-1 target orbit (Newton, Floquet multipliers), then 8
+#    switch-on times per gain and ETDAS memory R, each run judged caught or not
+$R control-study scenarios/jeffcott_chaos_control.toml --switch-on 1.528:1.9:8 \
+    --gains 300,400,500,600,700,800,1000,1500 --memory 0,0.3,0.6 --periods 150 \
+    $Q --out "$OUT/study_chaos_control"
+$R control-study scenarios/jeffcott_penalty_chaos_control.toml --switch-on 1.528:1.9:8 \
+    --gains 300,400,500,600,700,800,1000,1500 --memory 0,0.3,0.6 --periods 150 \
+    $Q --out "$OUT/study_penalty_chaos_control"
+
 G=docs/gallery
 mkdir -p "$G"
 cp "$OUT/single_dof_grazing/bifurcation.png" "$G/single_dof_grazing.png"
@@ -57,4 +67,6 @@ cp "$OUT/duffing_basins/basins.png" "$G/duffing_basins.png"
 cp "$OUT/chaos_control/timeseries.png" "$G/chaos_control.png"
 cp "$OUT/chaos_uncontrolled/poincare.png" "$G/chaos_poincare_without_control.png"
 cp "$OUT/chaos_control/poincare.png" "$G/chaos_poincare_with_control.png"
+cp "$OUT/study_chaos_control/success.png" "$G/control_study_rigid.png"
+cp "$OUT/study_penalty_chaos_control/success.png" "$G/control_study_penalty.png"
 echo "gallery figures in $G"

@@ -28,6 +28,7 @@ _API = {
     "sweep": "api",
     "basins": "api",
     "lyapunov": "api",
+    "control_study": "api",
     "scenarios": "api",
     "Scenario": "scenario",
     "ScenarioError": "scenario",
@@ -43,6 +44,7 @@ __all__ = [
     "sweep",
     "basins",
     "lyapunov",
+    "control_study",
     "scenarios",
     "Scenario",
     "ScenarioError",
@@ -51,7 +53,17 @@ __all__ = [
 ]
 
 if TYPE_CHECKING:
-    from .api import basins, check, cosimulate, load, lyapunov, scenarios, simulate, sweep
+    from .api import (
+        basins,
+        check,
+        control_study,
+        cosimulate,
+        load,
+        lyapunov,
+        scenarios,
+        simulate,
+        sweep,
+    )
     from .results import CheckResult, SimulationResult
     from .scenario import Scenario, ScenarioError
 

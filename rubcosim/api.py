@@ -297,3 +297,41 @@ def lyapunov(
     return lyapunov_spectrum(
         sc.system, periods, transient, rtol=_rtol(rtol, LYAPUNOV_RTOL), count=count
     )
+
+
+def control_study(
+    scenario: ScenarioLike,
+    switch_on: str | tuple[float, float, int],
+    gains: Sequence[float] | None = None,
+    memories: Sequence[float] | None = None,
+    *,
+    periods: int = 200,
+    lyapunov_periods: int = 500,
+    transient: int = 200,
+    rtol: float = 1e-10,
+    workers: int | None = None,
+    scheduler: str | None = None,
+    set: Params = None,  # noqa: A002
+    progress: bool = False,
+) -> Any:
+    """Chaos control study (``rubcosim control-study``) of a scenario with a delayed-
+    feedback controller: the uncontrolled Lyapunov spectrum, the target orbit of period
+    ``controller.delay_periods`` (Newton, Floquet multipliers), then a controlled run per
+    gain x memory x switch-on time (``"A:B:N"``, s) judged converged or not
+    (:mod:`rubcosim.analysis.control_study`).  Returns a ``ControlStudy``."""
+    from .analysis.control_study import run_control_study
+
+    sc = _scenario(scenario, set)
+    return run_control_study(
+        sc,
+        switch_on,
+        list(gains) if gains else None,
+        list(memories) if memories else None,
+        periods=periods,
+        lyapunov_periods=lyapunov_periods,
+        transient=transient,
+        rtol=rtol,
+        workers=workers,
+        scheduler=scheduler,
+        progress=progress,
+    )

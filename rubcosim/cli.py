@@ -13,7 +13,7 @@ from rubcosim.orchestrator.cosim_result import CosimError
 from rubcosim.orchestrator.settings import BACKENDS
 from rubcosim.reference.simulate import ENGINES
 
-from . import api, cli_lyapunov, cli_ssp
+from . import api, cli_control, cli_lyapunov, cli_ssp
 from .analysis.errors import AnalysisError
 from .analysis.sweep import DIRECTIONS
 from .basinsettings import BASIN_METHODS
@@ -71,6 +71,7 @@ def _parser() -> argparse.ArgumentParser:
         )
     _analysis_parsers(sub)
     cli_lyapunov.add_parser(sub, SCENARIO_HELP)
+    cli_control.add_parser(sub, SCENARIO_HELP)
     cli_ssp.add_parser(sub, SCENARIO_HELP)
     sub.add_parser("scenarios", help="list the bundled scenarios with their descriptions")
     warm = sub.add_parser(
@@ -374,6 +375,7 @@ COMMANDS = {
     "sweep": cmd_sweep,
     "basins": cmd_basins,
     "lyapunov": cli_lyapunov.cmd_lyapunov,
+    "control-study": cli_control.cmd_control_study,
     "export-ssp": cli_ssp.cmd_export_ssp,
     "scenarios": cmd_scenarios,
     "warm-up": cmd_warm_up,

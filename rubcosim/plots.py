@@ -118,3 +118,28 @@ def scenario_plots(run: ScenarioRun, out: Path) -> list[Path]:
         func(run, pl.get(kind, default), path)
         written.append(path)
     return written
+
+
+def control_success_figure(study, path: Path) -> Path:
+    """Success rate of a control study against the gain (one line per memory R) and
+    against R (one line per gain), PNG."""
+    rates = study.success_rates()
+    gains = sorted({g for g, _ in rates})
+    memories = sorted({m for _, m in rates})
+    fig = _figure(10.0, 4.2, (0.08, 0.13, 0.98, 0.88))
+    ax1, ax2 = fig.subplots(1, 2)
+    for m in memories:
+        ax1.plot(gains, [100 * rates[(g, m)] for g in gains], "o-", label=f"R = {m:g}")
+    for g in gains:
+        ax2.plot(memories, [100 * rates[(g, m)] for m in memories], "s-", label=f"K = {g:g}")
+    ax1.set_xlabel("gain K")
+    ax2.set_xlabel("ETDAS memory R")
+    for ax in (ax1, ax2):
+        ax.set_ylabel("runs converged (%)")
+        ax.set_ylim(-5, 105)
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=8)
+    n = len(study.runs) // max(1, len(rates))
+    fig.suptitle(f"{study.scenario}: delayed feedback, {n} switch-on times per point")
+    fig.savefig(path, dpi=DPI)
+    return path

@@ -474,7 +474,7 @@ def test_every_gallery_command_names_a_scenario_and_parses():
     script = (SCENARIOS.parent / "docs" / "make_gallery.sh").read_text()
     commands = script.replace("\\\n", " ").splitlines()
     runs = [shlex.split(c.split("||")[0])[1:] for c in commands if c.startswith("$R ")]
-    assert len(runs) == 9
+    assert len(runs) == 11
     for argv in runs:
         argv = [a.replace('"$OUT', "results/gallery").rstrip('"') for a in argv if a != "$Q"]
         args = _parser().parse_args(argv)

@@ -22,7 +22,15 @@ def relative_errors(a, b):
 
 # A chaotic motion amplifies round-off differences by about 1.25 per period: the two
 # engines are compared over its first 20 periods only.
-SHORTENED = {"jeffcott_chaos_control": ["sim.t_end=0.3"]}
+SHORTENED = {
+    "jeffcott_chaos_control": ["sim.t_end=0.3"],
+    "jeffcott_penalty_chaos_control": ["sim.t_end=0.05"],
+}
+# The chaotic rotor on a stiff penalty stator (100 k): the engines take 221 and 223
+# steps over its first three periods and part by 1e-8 in the states at 0.034 s, which
+# its Lyapunov exponent (+32 1/s) and the contact stiffness make 1.7e-7 of the
+# normal force by 0.05 s.
+BOUNDS = {"jeffcott_penalty_chaos_control": 3e-7}
 
 
 @pytest.mark.parametrize("path", SCENARIOS, ids=lambda p: p.stem)
@@ -34,7 +42,8 @@ def test_fast_agrees_with_accurate_on_every_scenario(path):
     assert not np.isnan(fast.outputs).any()
     errors = relative_errors(fast, accurate)
     worst = int(np.argmax(errors))
-    assert errors[worst] <= 1e-8, f"{fast.output_names[worst]}: {errors[worst]:.3g}"
+    bound = BOUNDS.get(path.stem, 1e-8)
+    assert errors[worst] <= bound, f"{fast.output_names[worst]}: {errors[worst]:.3g}"
 
 
 def test_scenario_list_is_complete():
