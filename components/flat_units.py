@@ -32,6 +32,7 @@ import numpy as np
 
 from .bearing import film_scale, linear_bearing_force, oilfilm_force
 from .jit import njit
+from .kernels import all_finite
 from .linear_propagation import exact_step
 from .rotor import jeffcott_force, two_mass_disc_force
 from .stator import (
@@ -171,10 +172,7 @@ def do_step(kind, ode_kind, exact, n_y, n_in, ode_idx, p, tol, model, st, t, h):
     else:
         h_next, _, _, status = advance(ode_kind, t, t + h, y, 0, st[H], p, u, tol[0], tol[1])
         st[H] = h_next
-    bad = status != OK or not math.isfinite(st[H])
-    for i in range(n_y):
-        if not math.isfinite(y[i]):
-            bad = True
+    bad = status != OK or not math.isfinite(st[H]) or not all_finite(y, n_y)
     if bad:
         st[:] = saved
         return STEP_FAILED if status != OK else STEP_NOT_FINITE

@@ -28,6 +28,7 @@ from . import dop853 as rk
 from . import hybrid_dispatch
 from .hybrid_dispatch import KIND_IMPACT, N_EVENTS
 from .jit import USE_NUMBA, njit
+from .kernels import all_finite
 from .root_finding import F_CUR, MAX_TRIALS, X_CUR, bracket, crossed_end
 from .root_finding import advance as brent_advance
 from .unit_odes import unit_rhs
@@ -222,9 +223,8 @@ def advance(kind, t0, t_end, y, mode, h, p, u, rtol, atol):
         t = t_new
         # a step cut short by the end of the span says nothing against the one proposed
         h = max(h_proposed, h) if clipped else h_proposed
-    for i in range(n):
-        if not np.isfinite(y[i]):
-            return h, mode, impacts, NOT_FINITE
+    if not all_finite(y, n):
+        return h, mode, impacts, NOT_FINITE
     return h, mode, impacts, OK
 
 

@@ -6,6 +6,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from rubcosim.components.controller import MODULATION_SHAPES, modulation
 from rubcosim.reference import build_system, make_unit, simulate
 from rubcosim.runner import run_scenario
 from rubcosim.scenario import load_scenario
@@ -195,8 +196,9 @@ def test_delay_history_reaches_back_past_the_start_and_across_many_steps():
     assert np.allclose(ux[lag:], gain * (x[:-lag] - x[lag:]), rtol=0, atol=1e-8 * gain * amp)
 
 
+@pytest.mark.parametrize("shape", ["sine", "sawtooth", "telegraph"])
 @pytest.mark.parametrize("engine", ["fast", "accurate"])
-def test_variable_delay_uses_the_modulated_delay(engine):
+def test_variable_delay_uses_the_modulated_delay(engine, shape):
     rotor, w, amp = whirl_rotor(0.7, x0=0.0, y0=0.0, vx0=0.0, vy0=0.0)
     period = 2 * math.pi / w
     eps, nu, gain = 0.2 * period, 3.0, 2e5
@@ -208,6 +210,8 @@ def test_variable_delay_uses_the_modulated_delay(engine):
             delay_periods=1,
             modulation_amplitude=eps,
             modulation_frequency=nu,
+            modulation_shape=shape,
+            modulation_seed=3,
             t_on=3 * period,
         ),
     )
@@ -215,7 +219,9 @@ def test_variable_delay_uses_the_modulated_delay(engine):
     t = np.linspace(4 * period, 6 * period, 97)
     res = simulate(system, 6 * period, t_eval=t, engine=engine, rtol=1e-12)
     # the recorded times do not change the steps: read x at t - tau(t) from a second run
-    t_delayed = t - (period + eps * np.sin(nu * t))
+    code = MODULATION_SHAPES.index(shape)
+    f = np.array([modulation(ti, nu, code, 3) for ti in t])  # checked in test_etdas.py
+    t_delayed = t - (period + eps * f)
     order = np.argsort(t_delayed)
     res_d = simulate(system, 6 * period, t_eval=t_delayed[order], engine=engine, rtol=1e-12)
     x_delayed = np.empty_like(t)

@@ -36,7 +36,15 @@ STIMULI = {
     ("bearing", "oilfilm"): ({}, lambda t: {"x": 3e-5 * math.cos(700 * t), "vx": 0.01}),
     ("bearing", "linear"): ({}, lambda t: {"x": 3e-5 * math.cos(700 * t), "vy": 0.01}),
     ("controller", "delayed_feedback"): (
-        {"delay": 2e-3},
+        # ETDAS with a telegraph delay, 0.37 ms +- 0.1 ms: within the tests' 10-20 steps
+        # of 0.1 ms the history, the filter and the modulation's jumps are all at work
+        {
+            "delay": 3.7e-4,
+            "memory": 0.5,
+            "modulation_shape": "telegraph",
+            "modulation_amplitude": 1e-4,
+            "modulation_frequency": 3000.0,
+        },
         lambda t: {"x": 1e-5 * math.sin(1000 * t), "y": 1e-5 * math.cos(1300 * t)},
     ),
     ("oscillator", "impact_oscillator"): (

@@ -24,6 +24,7 @@ from rubcosim.components.dop853 import (
     stage_point,
     workspace,
 )
+from rubcosim.components.kernels import all_finite
 
 from .core import (
     C_EVAL,
@@ -53,15 +54,6 @@ from .history import (
 from .system import N_DELAYED, N_EVENTS
 from .tangent import tangent_after, tangent_step
 from .unowned import keep_alive, unowned
-
-
-@nb.njit(cache=True, inline="always")
-def all_finite(y):
-    """Whether every component is finite (a loop: ``np.isfinite`` allocates an array)."""
-    for i in range(y.shape[0]):  # noqa: SIM110 - numba compiles no generator in all()
-        if not math.isfinite(y[i]):
-            return False
-    return True
 
 
 @nb.njit(cache=True)
@@ -203,7 +195,7 @@ def integrate(y0, mode, t0, t_end, p, ip, tol, out, hist, dde, y_final, tan=None
                 cnt[C_REJECTED] += 1
             if cnt[C_STATUS] != STATUS_OK:
                 break
-            if not all_finite(y_new):
+            if not all_finite(y_new, y_new.shape[0]):
                 cnt[C_STATUS] = STATUS_NONFINITE
                 break
             cnt[C_STEPS] += 1
