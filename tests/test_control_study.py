@@ -105,3 +105,17 @@ def test_cli_control_study_writes_report_table_and_figure(tmp_path, capsys):
     assert (tmp_path / "runs.csv").read_text().count("\n") == 5
     assert (tmp_path / "success.png").stat().st_size > 10_000
     assert main(["control-study", str(RIGID), "--switch-on", "x", "--out", str(tmp_path)]) == 2
+
+
+def test_position_feedback_that_cannot_hold_the_target_is_reported_failing():
+    # position feedback K = 1e6 N/m (as stiff as the shaft) on the chaotic rotor: the
+    # delayed spring pumps energy in and the motion ends far from the target (violent
+    # impacts); every run says so
+    study = rc.control_study(
+        RIGID, "1.528:1.6:2", gains=[1e6], set={"controller.feedback": "position"}, **SMALL
+    )
+    assert study.target is not None and len(study.runs) == 2
+    for run in study.runs:
+        assert not run.converged and run.periods_to_converge == -1
+        assert run.status == "ok" and run.final_distance > 0.1
+    assert study.success_rates() == {(1e6, 0.0): 0.0}
