@@ -72,6 +72,18 @@ def interpolate(samples: np.ndarray, tq: float, side: str = "right") -> np.ndarr
     return lagrange_cubic(window[:, 0], window[:, 1:], tq)
 
 
+def lookup(samples: np.ndarray, tq: float, side: str = "right") -> np.ndarray:
+    """``(zx, zy, Sx, Sy)`` at ``tq`` from rows ``(t, zx, zy, Sx, Sy)``: the signal and
+    the filter each interpolated within its own continuous pieces (a jump of the
+    filter alone leaves z continuous: its two samples agree in z and split no z
+    stencil)."""
+    ts = samples[:, 0]
+    same_z = np.zeros(ts.size, dtype=bool)
+    same_z[1:] = (ts[1:] == ts[:-1]) & np.all(samples[1:, 1:3] == samples[:-1, 1:3], axis=1)
+    z = interpolate(samples[~same_z][:, :3], tq, side)
+    return np.concatenate((z, interpolate(samples[:, [0, 3, 4]], tq, side)))
+
+
 class DelayedFeedbackUnit(Unit):
     """Delayed-feedback controller ``u = K (S(t) - z(t))`` on both axes, where
     ``S = (1 - R) z(t - tau) + R S(t - tau)`` (R = 0: Pyragas, ``S = z(t - tau)``)."""
@@ -122,7 +134,7 @@ class DelayedFeedbackUnit(Unit):
         memory = self.params["memory"]
         if samples.shape[0] == 0:  # constant initial function: S = z
             return self._signal()
-        v = interpolate(samples, t - self._delay(t) if tq is None else tq, side)
+        v = lookup(samples, t - self._delay(t) if tq is None else tq, side)
         return etdas_blend(memory, v[0], v[2]), etdas_blend(memory, v[1], v[3])
 
     def _filter_jumps(self, hist: np.ndarray, t: float) -> np.ndarray:
@@ -150,11 +162,12 @@ class DelayedFeedbackUnit(Unit):
             before = (m - 2.0 * PIECE_TOL) * width  # a time in the previous piece
             found.append((s, s - self._delay(before), s - self._delay(s), "right"))
             m += 1.0
-        rows = []
+        rows: list[list[float]] = []
         zx, zy = self._signal()
+        current = [[t, zx, zy, np.nan, np.nan]]  # z at t: the stencil's right end
         for s, tq_left, tq_right, side in sorted(found):
             known = np.vstack((hist, rows)) if rows else hist
-            z = interpolate(np.vstack((known, [[t, zx, zy, np.nan, np.nan]])), s)
+            z = lookup(np.vstack((known, current)), s)
             left = self._filter(known, s, tq_left, side)
             right = self._filter(known, s, tq_right, "right")
             rows += [[s, z[0], z[1], *left], [s, z[0], z[1], *right]]
@@ -191,7 +204,7 @@ class DelayedFeedbackUnit(Unit):
         before = hist[hist[:, 0] < self.time]
         zx, zy = self._signal()
         sx, sy = (zx, zy) if self.params["memory"] == 0.0 else self._filter(before, self.time)
-        v = interpolate(np.vstack((before, [[self.time, zx, zy, sx, sy]])), tq)
+        v = lookup(np.vstack((before, [[self.time, zx, zy, sx, sy]])), tq)
         memory = self.params["memory"]
         return etdas_blend(memory, v[0], v[2]), etdas_blend(memory, v[1], v[3])
 

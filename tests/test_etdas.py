@@ -298,11 +298,11 @@ def test_rub_impact_under_extended_and_variable_feedback_agrees_between_engines(
 def test_cosimulation_of_extended_and_variable_feedback_matches_the_reference(variant):
     # the unit samples z and S at the communication points only: between two jumps
     # of S closer than four samples it interpolates S with fewer points, so its force
-    # is looser than the states (measured: 2e-4 and 2e-6 with ETDAS)
+    # is looser than the states (measured with ETDAS: 3.3e-5 and 7.7e-7)
     given = {"sim.t_end": 0.2, **VARIANTS[variant]}
     report, _, _, _ = compare(rc.load(SCENARIO, set=given))
     assert report["status"] == "ok", report["message"]
     assert report["impacts"]["cosim"] == report["impacts"]["reference"] > 0
     for name, out in report["outputs"].items():
-        bound = 1e-3 if name.startswith("controller.") else 1e-5
+        bound = 2e-4 if name.startswith("controller.") else 2e-6
         assert out["max_rel_error"] < bound, (name, out)
