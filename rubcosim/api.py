@@ -284,16 +284,23 @@ def lyapunov(
     rtol: float | None = None,
     set: Params = None,  # noqa: A002
     count: int | None = None,
+    uncontrolled: bool = False,
 ) -> Lyapunov:
     """Lyapunov spectrum (``rubcosim lyapunov``) of the scenario's motion from its initial
     state: ``transient`` forcing periods discarded, then ``periods`` measured, the
     tangent re-orthonormalised every period; the variational equations on the fast
     engine, with the saltation matrix at every impact and switch.  ``count``: only the
     largest few.  ``result.exponents`` (1/s, largest first), ``result.per_interval``
-    (per period), ``result.liouville`` (their sum by Liouville's formula)."""
+    (per period), ``result.liouville`` (their sum by Liouville's formula).
+    ``uncontrolled``: of the scenario without its delayed-feedback controller (a delay
+    equation has no finite spectrum here)."""
     from .analysis.lyapunov import LYAPUNOV_RTOL, lyapunov_spectrum
 
     sc = _scenario(scenario, set)
+    if uncontrolled:
+        from .analysis.control_study import uncontrolled as without_controller
+
+        sc = without_controller(sc)
     return lyapunov_spectrum(
         sc.system, periods, transient, rtol=_rtol(rtol, LYAPUNOV_RTOL), count=count
     )

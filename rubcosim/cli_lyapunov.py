@@ -21,6 +21,11 @@ def add_parser(sub: Any, scenario_help: str) -> None:
     ly.add_argument("--periods", type=int, default=1000, help="forcing periods measured")
     ly.add_argument("--transient", type=int, default=200, help="forcing periods discarded first")
     ly.add_argument("--rtol", type=float, default=None, help="the fast engine's tolerance")
+    ly.add_argument(
+        "--uncontrolled",
+        action="store_true",
+        help="the scenario without its delayed-feedback controller",
+    )
 
 
 def _fmt(v: float) -> str:
@@ -29,10 +34,17 @@ def _fmt(v: float) -> str:
 
 def cmd_lyapunov(args: argparse.Namespace) -> int:
     scenario = api.load(args.scenario, args.set)
-    lyap = api.lyapunov(scenario, periods=args.periods, transient=args.transient, rtol=args.rtol)
+    lyap = api.lyapunov(
+        scenario,
+        periods=args.periods,
+        transient=args.transient,
+        rtol=args.rtol,
+        uncontrolled=args.uncontrolled,
+    )
     T = lyap.interval
     print(
-        f"{scenario.name}: Lyapunov spectrum over {lyap.intervals} forcing periods "
+        f"{scenario.name}{' without its controller' if args.uncontrolled else ''}: "
+        f"Lyapunov spectrum over {lyap.intervals} forcing periods "
         f"(T = {T:.6g} s) after {lyap.transient}; {lyap.impacts / lyap.intervals:.4g} "
         "impacts per period"
     )

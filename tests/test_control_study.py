@@ -119,3 +119,16 @@ def test_position_feedback_that_cannot_hold_the_target_is_reported_failing():
         assert not run.converged and run.periods_to_converge == -1
         assert run.status == "ok" and run.final_distance > 0.1
     assert study.success_rates() == {(1e6, 0.0): 0.0}
+
+
+def test_lyapunov_of_a_controlled_scenario_without_its_controller(capsys):
+    # the spectrum of the scenario without its controller is the control study's; with
+    # the controller the delay equation is refused, pointing at --uncontrolled
+    direct = rc.lyapunov(RIGID, periods=50, transient=20, uncontrolled=True)
+    free = rc.lyapunov(uncontrolled(rc.load(RIGID)), periods=50, transient=20)
+    assert np.array_equal(direct.exponents, free.exponents)
+    with pytest.raises(AnalysisError, match="--uncontrolled"):
+        rc.lyapunov(RIGID, periods=5, transient=1)
+    argv = ["lyapunov", str(RIGID), "--uncontrolled", "--periods", "50", "--transient", "20"]
+    assert main(argv) == 0
+    assert "without its controller" in capsys.readouterr().out

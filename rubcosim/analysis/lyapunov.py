@@ -75,7 +75,9 @@ def _check_system(system: System) -> None:
         raise AnalysisError(
             "units.controller: a delayed-feedback system has an infinite-dimensional state "
             "(its history); the variational equations (Lyapunov exponents, variational "
-            "Floquet multipliers) take delay-free systems only"
+            "Floquet multipliers) take delay-free systems only; `rubcosim lyapunov "
+            "--uncontrolled` (rc.lyapunov(..., uncontrolled=True)) takes the scenario "
+            "without its controller"
         )
 
 
