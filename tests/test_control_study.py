@@ -78,9 +78,8 @@ def test_a_run_that_stopped_fails():
         "force": np.array([math.nan]),
         "ok": np.array([False]),
         "message": np.array(["event limit"]),
-        "signal_scale": np.array([1.0]),
     }
-    verdict = judge(1.0, 0.0, 0.0, result, hold=2)
+    verdict = judge(1.0, 0.0, 0.0, result, 1.0, hold=2)
     assert not verdict.converged and verdict.status == "event limit"
 
 

@@ -152,7 +152,6 @@ def controlled_run(
     periods: int,
     target: np.ndarray,
     scale: np.ndarray,
-    signal_scale: float,
     rtol: float,
 ) -> dict[str, np.ndarray]:
     """One controlled run (a worker task): ``periods`` forcing periods after ``t_on``."""
@@ -181,7 +180,6 @@ def controlled_run(
         "force": np.array([np.nanmax(force[tail]) if res.ok else math.nan]),
         "ok": np.array([res.ok]),
         "message": np.array([res.message]),
-        "signal_scale": np.array([signal_scale]),
     }
 
 
@@ -190,6 +188,7 @@ def judge(
     memory: float,
     t_on: float,
     result: dict[str, np.ndarray],
+    signal_scale: float,
     hold: int = HOLD,
     dist_tol: float = DIST_TOL,
     force_tol: float = FORCE_TOL,
@@ -203,7 +202,7 @@ def judge(
     far = np.flatnonzero(~close)
     first = int(far[-1] + 1) if far.size else 0
     settled = ok and first < close.size and close.size - first >= hold
-    small = force < force_tol * abs(gain) * float(result["signal_scale"][0])
+    small = force < force_tol * abs(gain) * signal_scale
     converged = bool(settled and small)
     return ControlRun(
         gain=float(gain),
@@ -289,10 +288,12 @@ def run_control_study(
     signal_scale = float(scale[names.index(signal)])
     cases = [(g, m, t) for g in gains for m in memories for t in times]
     tasks = [
-        (str(i), (scenario, g, m, t, periods, points, scale, signal_scale, rtol))
+        (str(i), (scenario, g, m, t, periods, points, scale, rtol))
         for i, (g, m, t) in enumerate(cases)
     ]
     with executor(workers, scheduler) as pool:
         results = run_tasks(controlled_run, tasks, pool, desc="controlled runs", progress=progress)
-    study.runs = [judge(g, m, t, results[str(i)]) for i, (g, m, t) in enumerate(cases)]
+    study.runs = [
+        judge(g, m, t, results[str(i)], signal_scale) for i, (g, m, t) in enumerate(cases)
+    ]
     return study
