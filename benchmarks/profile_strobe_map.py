@@ -52,7 +52,7 @@ def _run(Y, p, ip, period, rtol, atol, n_periods, split, tot):
             cnt[:] = 0
             _, mode = integrate(
                 y, mode, k * span, (k + 1) * span, p, ip, (rtol, atol, np.inf), out, None, dde,
-                y_end,
+                y_end, None,
             )  # fmt: skip
             y[:] = y_end
             for c in range(N_COUNTERS):

@@ -42,6 +42,17 @@ def _log_impacts(evlog, n_events, imp_t, imp_y, imp_count):
 
 
 @nb.njit(cache=True)
+def strobe_buffers(n, max_events):
+    """The engine's arguments besides the state, made once for a batch of runs: output
+    (no dense grid, the event log, the counters), an empty breakpoint queue (no delay)
+    and the state at a period's end."""
+    out = (np.empty(0), np.empty((0, 0)), new_event_log(max_events, n),
+           np.zeros(N_COUNTERS, dtype=np.int64))  # fmt: skip
+    dde = (np.zeros((1, 2)), np.zeros(4, dtype=np.int64))
+    return out, dde, np.empty(n)
+
+
+@nb.njit(cache=True)
 def strobe_run(
     y0,
     mode0,
@@ -72,25 +83,28 @@ def strobe_run(
     ``(status, periods_done, mode)``; the state after the last period done is
     ``points[periods_done - n_skip - 1]`` when ``periods_done > n_skip``.
     """
-    n = y0.shape[0]
     y = y0.copy()
-    y_end = np.empty(n)
-    mode = mode0
-    t_eval = np.empty(0)
-    rec = np.empty((0, 0))
-    evlog = new_event_log(max_events, n)
-    queue = np.zeros((1, 2))  # no delay: an empty breakpoint queue
-    qmeta = np.zeros(4, dtype=np.int64)
-    dde = (queue, qmeta)
-    cnt = np.zeros(N_COUNTERS, dtype=np.int64)
+    bufs = strobe_buffers(y.shape[0], max_events)
     tol = (rtol, atol, max_step)
-    out = (t_eval, rec, evlog, cnt)
+    return _strobe(y, mode0, t0, period, n_skip, n_keep, p, ip, tol, bufs, points, impacts,
+                   modes, (imp_t, imp_y, imp_count))  # fmt: skip
+
+
+@nb.njit(cache=True)
+def _strobe(y, mode, t0, period, n_skip, n_keep, p, ip, tol, bufs, points, impacts, modes, section):
+    """:func:`strobe_run` on the batch's buffers ``bufs`` (:func:`strobe_buffers`); ``y``
+    is advanced in place; ``section = (imp_t, imp_y, imp_count)``."""
+    n = y.shape[0]
+    out, dde, y_end = bufs
+    evlog, cnt = out[2], out[3]
+    qmeta = dde[1]
+    imp_t, imp_y, imp_count = section
     for k in range(n_skip + n_keep):
         cnt[:] = 0
         qmeta[:] = 0
         t_a = t0 + k * period
         t_b = t0 + (k + 1) * period
-        t, mode = integrate(y, mode, t_a, t_b, p, ip, tol, out, None, dde, y_end)
+        t, mode = integrate(y, mode, t_a, t_b, p, ip, tol, out, None, dde, y_end, None)
         if cnt[C_STATUS] != STATUS_OK:
             return cnt[C_STATUS], k, mode
         for i in range(n):
@@ -131,40 +145,23 @@ def map_many(
     pts = np.empty((1, n))
     imp = np.zeros(1, dtype=np.int64)
     md = np.zeros(1, dtype=np.int64)
-    no_t = np.empty(0)
-    no_y = np.empty((0, n))
-    no_c = np.zeros(1, dtype=np.int64)
+    no_section = (np.empty(0), np.empty((0, n)), np.zeros(1, dtype=np.int64))
+    bufs = strobe_buffers(n, max_events)  # once for the batch, not per map
+    tol = (rtol, atol, max_step)
+    y = np.empty(n)
     for j in range(Y0.shape[0]):
         total = 0
-        y = Y0[j].copy()
+        for i in range(n):
+            y[i] = Y0[j, i]
         mode = modes0[j]
         st = STATUS_OK
         for k in range(n_periods):
-            st, done, mode = strobe_run(
-                y,
-                mode,
-                t0 + k * period,
-                period,
-                0,
-                1,
-                p,
-                ip,
-                rtol,
-                atol,
-                max_step,
-                max_events,
-                pts,
-                imp,
-                md,
-                no_t,
-                no_y,
-                no_c,
+            st, done, mode = _strobe(
+                y, mode, t0 + k * period, period, 0, 1, p, ip, tol, bufs, pts, imp, md, no_section
             )
             if st != STATUS_OK:
                 break
             total += imp[0]
-            for i in range(n):
-                y[i] = pts[0, i]
         status[j] = st
         impacts[j] = total
         modes1[j] = mode

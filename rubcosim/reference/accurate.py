@@ -24,8 +24,10 @@ from .history import (
 from .system import N_DELAYED
 
 
-def integrate(y0, mode, t0, t_end, p, ip, tol, out, hist, dde, y_final):
-    """Same contract as :func:`rubcosim.reference.fast.integrate`."""
+def integrate(y0, mode, t0, t_end, p, ip, tol, out, hist, dde, y_final, tan=None):
+    """Same contract as :func:`rubcosim.reference.fast.integrate`, without a tangent."""
+    if tan is not None:
+        raise ValueError("the accurate engine carries no tangent: use the fast engine")
     from scipy.integrate import DOP853  # here: only this engine needs scipy at run time
 
     rtol, atol, max_step = tol

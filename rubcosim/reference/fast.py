@@ -124,14 +124,16 @@ def rk_step(t, y, f, h, mode, p, ip, hist, yd, K, y_new, f_new, ytmp, dy, cnt):
 
 # nogil: a progress thread (rubcosim.progress) reads the counters while it runs
 @nb.njit(cache=True, nogil=True)
-def integrate(y0, mode, t0, t_end, p, ip, tol, out, hist, dde, y_final, tan=None):
+def integrate(y0, mode, t0, t_end, p, ip, tol, out, hist, dde, y_final, tan):
     """Integrate from t0 to t_end; returns ``(t, mode)`` reached (t < t_end on failure).
 
     ``tol = (rtol, atol array, max_step)``; ``out = (t_eval, rec, evlog, cnt)``: the
     output times, the recorded outputs there, the event log and the counters;
     ``hist`` the delay history (None without delay) and ``dde = (queue, qmeta)`` its
     breakpoint queue; the final state goes to ``y_final``.  ``tan``: a tangent matrix
-    carried along (:func:`rubcosim.reference.tangent.new_tangent`; delay-free systems).
+    carried along (:func:`rubcosim.reference.tangent.new_tangent`; delay-free systems)
+    or None.  Every caller passes it, None included: numba compiles an omitted
+    argument and a None apart, and this engine takes a minute and a half to compile.
     """
     rtol, atol, max_step = tol
     t_eval, rec, evlog, cnt = out

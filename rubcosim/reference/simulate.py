@@ -192,6 +192,7 @@ def simulate(
                 hist,
                 (queue, qmeta),
                 y_final,
+                None,
             )
         wall = time.perf_counter() - t0
         if hist is not None and hist[5][HM_OVERFLOW] and cnt[C_STATUS] == STATUS_OK:

@@ -156,18 +156,13 @@ def sided_jacobian(t, ys, fs, mode, p, ip, hist, yd, fd, J, ref, fp, fm):
 
 
 @nb.njit(cache=True)
-def tangent_stages(tan, t, h, y, K, fresh, mode, p, ip, hist, yd):
-    """Advance ``Phi`` over the step of size h from (t, y) with the state's stages K
-    (``K[0] = f(t, y)``; ``fresh``: compute stages 1.. here)."""
+def tangent_stages(tan, t, h, y, K, mode, p, ip, hist, yd):
+    """Advance ``Phi`` over the step of size h from (t, y) with the state's stages K."""
     Phi, fd, small, _, _, KP, ptmp, pnew, Js, Ys, fp, fm, _, stats = tan
     n, k = Phi.shape
     phi = Phi.reshape(n * k)
     for s in range(N_STAGES):
         stage_point(K, s, y, h, Ys[s])
-        if fresh and s > 0:
-            full_rhs(t + C[s] * h, Ys[s], mode, p, ip, hist, yd, fp)
-            for i in range(n):
-                K[s, i] = fp[i]
     last = N_STAGES - 1  # C[0] = 0 and C[last] = 1: the step's ends
     for s in range(1, last):
         jacobian(t + C[s] * h, Ys[s], mode, p, ip, hist, yd, fd, Js[s], fp, fm)
@@ -192,6 +187,19 @@ def tangent_stages(tan, t, h, y, K, fresh, mode, p, ip, hist, yd):
     for i in range(n * k):
         phi[i] = pnew[i]
     stats[T_TRACE] += h * trace
+
+
+@nb.njit(cache=True)
+def fresh_stages(tan, t, h, y, K, mode, p, ip, hist, yd):
+    """The state's stages 1.. of a step of size h from (t, y) into K (``K[0] = f(t, y)``
+    given): a step cut short by an event, re-taken for the tangent.  Apart from
+    :func:`tangent_stages` so that it compiles once (a flag there made two copies)."""
+    Ys, fp = tan[9], tan[10]
+    for s in range(1, N_STAGES):
+        stage_point(K, s, y, h, Ys[s])
+        full_rhs(t + C[s] * h, Ys[s], mode, p, ip, hist, yd, fp)
+        for i in range(y.shape[0]):
+            K[s, i] = fp[i]
 
 
 @nb.njit(cache=True)
@@ -267,7 +275,7 @@ def tangent_step(tan, t, h, y, K, mode, p, ip, hist, yd):
     """The engine's hook after a step [t, t + h] accepted without dense output."""
     if tan is None:
         return
-    tangent_stages(tan, t, h, y, K, False, mode, p, ip, hist, yd)
+    tangent_stages(tan, t, h, y, K, mode, p, ip, hist, yd)
 
 
 @nb.njit(cache=True)
@@ -282,16 +290,17 @@ def tangent_after(tan, seg, K, t_next, modes, y_next, out, p, ip, hist, yd):
     mode, mode_next, fs = modes
     evlog, cnt = out[2], out[3]
     if fs < 0 and mode_next == mode:  # no event: the whole step
-        tangent_stages(tan, t, h, y, K, False, mode, p, ip, hist, yd)
+        tangent_stages(tan, t, h, y, K, mode, p, ip, hist, yd)
         return
     te = t_next
     Ks = tan[4]
     if te >= t + h:
-        tangent_stages(tan, t, h, y, K, False, mode, p, ip, hist, yd)
+        tangent_stages(tan, t, h, y, K, mode, p, ip, hist, yd)
     elif te > t:
         for i in range(y.shape[0]):
             Ks[0, i] = K[0, i]
-        tangent_stages(tan, t, te - t, y, Ks, True, mode, p, ip, hist, yd)
+        fresh_stages(tan, t, te - t, y, Ks, mode, p, ip, hist, yd)
+        tangent_stages(tan, t, te - t, y, Ks, mode, p, ip, hist, yd)
     ym = np.empty(y.shape[0])
     dense_eval(t, h, y, F, te, ym, y.shape[0])
     k = evlog[2][cnt[C_EVENTS] - 1]
