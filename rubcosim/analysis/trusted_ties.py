@@ -55,6 +55,11 @@ from .tie_passes import (
 K_NEAR = 8  # samples nearest to an image that must share one fate (16 per cell: ~0.4 cell)
 TRACK_MAX = 150  # periods a sample that is not trusted is followed exactly
 SINK = 1 << 30  # the sink's fate while attractors may still be added (len(known) at the end)
+# Tracked samples fewer than 1/FEW_TRACKED of all: the trust passes (three compiled
+# sweeps over every sample, ~20 ms for 640,000) cost more than mapping them (~8 us
+# each on 2 workers), so they run every PASS_EVERY rounds.
+FEW_TRACKED = 256
+PASS_EVERY = 8
 
 
 @nb.njit(cache=True)
@@ -119,13 +124,22 @@ def settle_samples(
     fate, safe, ok = np.empty(n, dtype=np.int64), np.empty(n, dtype=bool), np.empty(n, dtype=bool)
     y = images.copy()  # the exact state of every sample tracked so far
     done = np.zeros(n, dtype=np.int64)  # periods each sample was tracked
-    stats = {"anchors": int(np.sum(anchor >= 0)), "tracked_periods": 0}
+    stats = {"anchors": int(np.sum(anchor >= 0)), "tracked_periods": 0, "trust_passes": 0}
+    roots, last_pass = np.empty(0, dtype=np.int64), -PASS_EVERY
     for step in range(TRACK_MAX + 1):
-        # a cycle without an anchor cannot occur (SINK for it: never a label)
-        fates_in_order(order, reached, succ, anchor, SINK, SINK, fate)
-        safe_ties(nxt, near, fate, safe)
-        trust_in_order(order, reached, succ, anchor, safe, ok)
-        roots = np.flatnonzero(~ok & ~safe & (anchor < 0))
+        # Few samples left: the passes over every sample cost more than their maps, so
+        # they run every PASS_EVERY rounds only; in between the tracked samples go on
+        # and the decided ones drop out.  A tie made unsafe by a new anchor waits for
+        # the next pass, and tracking ends only on a pass that finds nothing to track.
+        lazy = roots.size and roots.size * FEW_TRACKED < n and step - last_pass < PASS_EVERY
+        roots = roots[anchor[roots] < 0] if lazy else roots
+        if not lazy or roots.size == 0:
+            # a cycle without an anchor cannot occur (SINK for it: never a label)
+            fates_in_order(order, reached, succ, anchor, SINK, SINK, fate)
+            safe_ties(nxt, near, fate, safe)
+            trust_in_order(order, reached, succ, anchor, safe, ok)
+            roots, last_pass = np.flatnonzero(~ok & ~safe & (anchor < 0)), step
+            stats["trust_passes"] += 1
         if step == 0:
             stats |= {"unsafe_ties": int(np.sum(~safe)), "untrusted": int(np.sum(~ok))}
         if roots.size == 0:
@@ -140,6 +154,10 @@ def settle_samples(
         if not np.all(reached[new]):  # an anchor on a cycle that had none: order again
             order, reached = dependency_order(nxt, anchor >= 0)
             succ = successor_positions(order, nxt)
+    else:  # TRACK_MAX periods tracked: what is still undecided, by a last pass
+        fates_in_order(order, reached, succ, anchor, SINK, SINK, fate)
+        safe_ties(nxt, near, fate, safe)
+        trust_in_order(order, reached, succ, anchor, safe, ok)
     left = np.flatnonzero(~ok & ~safe & (anchor < 0))
     if left.size:  # still undecided after TRACK_MAX periods: pursued, then classified
         pursued, more = pursue(smap, space, y[left], known)
