@@ -139,8 +139,13 @@ def parallel_images(
         def images(states: np.ndarray) -> np.ndarray:
             if n == 1 or states.shape[0] < SPLIT_MIN:
                 return _images(smap, states)
-            parts = [pool.submit(_images, smap, p) for p in np.array_split(states, n)]
-            return np.concatenate([f.result() for f in parts])
+            # interleaved rows: neighbouring states cost alike (a batch is often
+            # sorted by position), so contiguous halves would leave a worker idle
+            parts = [pool.submit(_images, smap, states[i::n]) for i in range(n)]
+            out = np.empty_like(states)
+            for i, f in enumerate(parts):
+                out[i::n] = f.result()
+            return out
 
         yield images
 
