@@ -33,6 +33,8 @@ import time
 from pathlib import Path
 from typing import Any
 
+from rubcosim.analysis.published import found_label
+
 REPO = Path(__file__).resolve().parents[1]
 DEFAULT_OUT = REPO / "benchmarks" / "results"
 TARGET_S = 10.0
@@ -102,7 +104,7 @@ def _markdown(res: dict[str, Any]) -> str:
     for a in pub.get("attractors", []):
         frac = a.get("sample_fraction") or 0.0
         lines.append(
-            f"| {a['paper']} | {a['paper_cells']} | {a.get('label')} {a.get('cells')} "
+            f"| {a['paper']} | {a['paper_cells']} | {found_label(a)} {a.get('cells')} "
             f"| {a['paper_basin_cells']} | {a.get('basin_cells')} | {100 * frac:.2f} % |"
         )
     for s in pub.get("saddles", []):

@@ -74,6 +74,11 @@ def test_pursuit_finds_feng_yangs_four_attractors_and_two_saddles(tmp_path, caps
     counts = report["counts"]
     assert sum(counts["basins"]) + counts["boundary"] + counts["escape"] == 60 * 80
     assert "published" in report and len(report["published"]["attractors"]) == 4
+    # the chaotic attractor is labelled by its largest exponent: positive (the
+    # paper's chaos; +0.052 1/s by benchmarks/study_lyapunov.py over 20,000 periods)
+    p1 = next(r for r in report["published"]["attractors"] if r["paper"] == "P1")
+    assert 0.02 < p1["lyapunov"] < 0.09
+    assert f"largest Lyapunov exponent {p1['lyapunov']:+.4f} 1/s" in printed
     assert (out / "basins.png").stat().st_size > 0
     data = np.load(out / "basins.npz")
     assert data["labels"].shape == (4800,)

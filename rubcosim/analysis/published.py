@@ -82,6 +82,7 @@ def compare(basins: Basins, scenario_name: str) -> dict[str, Any] | None:
             row |= {
                 "attractor": k,
                 "label": m["label"],
+                "lyapunov": m.get("lyapunov"),
                 "cells": hsu_numbers(basins.grid, np.flatnonzero(basins.attractor_of == k)),
                 "distance_cells": dist[k],
                 "basin_cells": counts["basins"][k],
@@ -123,6 +124,15 @@ def compare(basins: Basins, scenario_name: str) -> dict[str, Any] | None:
     }
 
 
+def found_label(row: dict[str, Any]) -> str:
+    """An attractor row's label (n-m, or not periodic) with the largest Lyapunov
+    exponent measured for a motion that is not periodic (1/s, over the attractor)."""
+    label, lyap = str(row.get("label")), row.get("lyapunov")
+    if isinstance(lyap, float) and np.isfinite(lyap):
+        return f"{label}, largest Lyapunov exponent {lyap:+.4f} 1/s"
+    return label
+
+
 def basins_summary(basins: Basins, scenario_name: str) -> list[str]:
     """Lines printed after a basins run: the fixed points found, and the comparison
     with the published structure when there is one."""
@@ -142,7 +152,7 @@ def basins_summary(basins: Basins, scenario_name: str) -> list[str]:
         frac = r.get("sample_fraction")
         lines.append(
             f"  {r['paper']} {r['paper_kind']} cells {r['paper_cells']} basin "
-            f"{r['paper_basin_cells']} | found {r.get('label')} cells {r.get('cells')} "
+            f"{r['paper_basin_cells']} | found {found_label(r)} cells {r.get('cells')} "
             f"({r.get('distance_cells', np.nan):.1f} paper cells away) basin "
             f"{r.get('basin_cells')}, {100 * frac if frac is not None else np.nan:.2f} % of "
             f"the {cmp['samples_total']} samples"
