@@ -96,18 +96,26 @@ def test_one_pass_fates_and_trust_agree_with_following_every_chain(seed):
     assert 0 < ok.sum() < n and (fate == -1).any()  # the draw covers every case
 
 
-def test_pursuit_sends_every_sample_where_direct_simulation_does():
+def test_pursuit_sends_every_sample_where_direct_simulation_does(monkeypatch):
     """Feng & Yang's case on a coarse grid (thin interleaved basins): each of a random
     set of samples is simulated 800 periods (rtol 1e-9) and classified by where it
-    ends; pursuit's fate of the sample must be the same."""
+    ends; pursuit's fate of the sample must be the same.  Also with the trust passes
+    run every ``PASS_EVERY`` rounds from the first round (as they are once few samples
+    are tracked): a tie made unsafe between two passes must still be tracked."""
+    from rubcosim.analysis import trusted_ties
+
     sc = rc.load(SCENARIO)
     grid, samples = (40, 40), 4
-    b = rc.basins(sc, grid, samples, (-2.0, 1.0, -2.0, 2.0), workers=1, method="pursuit")
-    assert b.n_attractors == 4
-    fates = b.fates.ravel()
+    region = (-2.0, 1.0, -2.0, 2.0)
+    b = rc.basins(sc, grid, samples, region, workers=1, method="pursuit")
+    monkeypatch.setattr(trusted_ties, "FEW_TRACKED", 1)  # lazy whenever any is tracked
+    lazy = rc.basins(sc, grid, samples, region, workers=1, method="pursuit")
+    ties = lazy.info["pursuit"]["ties"]
+    assert ties["trust_passes"] < ties["rounds"]  # passes were skipped
+    assert b.n_attractors == lazy.n_attractors == 4
     points = sample_cells(b.grid, 0, b.grid.n_cells, samples, 0)
     rng = np.random.default_rng(3)
-    pick = rng.choice(np.flatnonzero(fates < b.n_attractors), 100, replace=False)
+    pick = rng.choice(np.flatnonzero(b.fates.ravel() < b.n_attractors), 100, replace=False)
     ends, _, _, status = StroboscopicMap(sc.system, 1e-9).map(points[pick], periods=800)
     assert np.all(status == 0)
     direct = np.full(pick.size, -1)
@@ -117,7 +125,10 @@ def test_pursuit_sends_every_sample_where_direct_simulation_does():
             direct[d < 1e-4] = k
     chaotic = [k for k, m in enumerate(b.motions) if not m["periodic"]]
     direct[direct < 0] = chaotic[0]
-    assert np.sum(direct == fates[pick]) == pick.size
+    assert np.sum(direct == b.fates.ravel()[pick]) == pick.size
+    # the same attractors in the same order (found from the same samples)
+    assert [m["label"] for m in lazy.motions] == [m["label"] for m in b.motions]
+    assert np.sum(direct == lazy.fates.ravel()[pick]) == pick.size
 
 
 def test_the_scenario_basins_table_gives_the_defaults(tmp_path, capsys):

@@ -124,7 +124,8 @@ def settle_samples(
     fate, safe, ok = np.empty(n, dtype=np.int64), np.empty(n, dtype=bool), np.empty(n, dtype=bool)
     y = images.copy()  # the exact state of every sample tracked so far
     done = np.zeros(n, dtype=np.int64)  # periods each sample was tracked
-    stats = {"anchors": int(np.sum(anchor >= 0)), "tracked_periods": 0, "trust_passes": 0}
+    stats = {"anchors": int(np.sum(anchor >= 0)), "tracked_periods": 0, "rounds": 0}
+    stats["trust_passes"] = 0
     roots, last_pass = np.empty(0, dtype=np.int64), -PASS_EVERY
     for step in range(TRACK_MAX + 1):
         # Few samples left: the passes over every sample cost more than their maps, so
@@ -148,6 +149,7 @@ def settle_samples(
             y[roots] = mapper(y[roots])
             done[roots] += 1
             stats["tracked_periods"] += int(roots.size)
+            stats["rounds"] += 1
         decided = _decide(space, grid, tree, y[roots], fate, ok, known)
         new = roots[decided >= 0]
         anchor[new] = decided[decided >= 0]
