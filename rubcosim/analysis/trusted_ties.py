@@ -89,6 +89,15 @@ def _decide(space: Any, grid: Grid, tree: cKDTree, y: np.ndarray, fate, ok, know
     return decided
 
 
+def _trust_pass(order, reached, succ, anchor, nxt, near, fate, safe, ok) -> None:
+    """Every sample's provisional ``fate``, whether its tie is ``safe`` and whether it
+    is trusted (``ok``), from the ``anchor``s: one compiled pass each, in place."""
+    # a cycle without an anchor cannot occur (SINK for it: never a label)
+    fates_in_order(order, reached, succ, anchor, SINK, SINK, fate)
+    safe_ties(nxt, near, fate, safe)
+    trust_in_order(order, reached, succ, anchor, safe, ok)
+
+
 def settle_samples(
     smap: StroboscopicMap,
     space: Any,
@@ -124,8 +133,12 @@ def settle_samples(
     fate, safe, ok = np.empty(n, dtype=np.int64), np.empty(n, dtype=bool), np.empty(n, dtype=bool)
     y = images.copy()  # the exact state of every sample tracked so far
     done = np.zeros(n, dtype=np.int64)  # periods each sample was tracked
-    stats = {"anchors": int(np.sum(anchor >= 0)), "tracked_periods": 0, "rounds": 0}
-    stats["trust_passes"] = 0
+    stats = {
+        "anchors": int(np.sum(anchor >= 0)),
+        "tracked_periods": 0,
+        "rounds": 0,
+        "trust_passes": 0,
+    }
     roots, last_pass = np.empty(0, dtype=np.int64), -PASS_EVERY
     for step in range(TRACK_MAX + 1):
         # Few samples left: the passes over every sample cost more than their maps, so
@@ -135,10 +148,7 @@ def settle_samples(
         lazy = roots.size and roots.size * FEW_TRACKED < n and step - last_pass < PASS_EVERY
         roots = roots[anchor[roots] < 0] if lazy else roots
         if not lazy or roots.size == 0:
-            # a cycle without an anchor cannot occur (SINK for it: never a label)
-            fates_in_order(order, reached, succ, anchor, SINK, SINK, fate)
-            safe_ties(nxt, near, fate, safe)
-            trust_in_order(order, reached, succ, anchor, safe, ok)
+            _trust_pass(order, reached, succ, anchor, nxt, near, fate, safe, ok)
             roots, last_pass = np.flatnonzero(~ok & ~safe & (anchor < 0)), step
             stats["trust_passes"] += 1
         if step == 0:
@@ -157,9 +167,7 @@ def settle_samples(
             order, reached = dependency_order(nxt, anchor >= 0)
             succ = successor_positions(order, nxt)
     else:  # TRACK_MAX periods tracked: what is still undecided, by a last pass
-        fates_in_order(order, reached, succ, anchor, SINK, SINK, fate)
-        safe_ties(nxt, near, fate, safe)
-        trust_in_order(order, reached, succ, anchor, safe, ok)
+        _trust_pass(order, reached, succ, anchor, nxt, near, fate, safe, ok)
     left = np.flatnonzero(~ok & ~safe & (anchor < 0))
     if left.size:  # still undecided after TRACK_MAX periods: pursued, then classified
         pursued, more = pursue(smap, space, y[left], known)
