@@ -38,6 +38,14 @@ def event_value(slot, t, seg, ctx, hist, scratch):
 
 
 @nb.njit(cache=True)
+def value_at(slot, t, seg, ctx, hist, scratch):
+    """:func:`event_value` as a call, not inlined: for the sites that run a few times
+    per event, each inlined copy of the system's event functions costing seconds of
+    compilation."""
+    return event_value(slot, t, seg, ctx, hist, scratch)
+
+
+@nb.njit(cache=True)
 def locate(slot, sgn, ta, fa, tb, fb, seg, ctx, hist, scratch):
     """Bracket [ta, tb] of a zero of ``sgn * g_slot`` (fa > 0 >= fb), located to
     round-off of t; returns the end point on the crossed side (sgn * g <= 0), so
@@ -119,6 +127,7 @@ def first_return(k, j, sgn, t_a, t_b, rate_a, fb, seg, ctx, hist, scratch):
             i -= 1
             continue
         rm = sgn * event_value(j, tm, seg, ctx, hist, scratch)
+        gm = sgn * scratch[2][k]  # the same evaluation filled every slot: g_k at tm too
         if top < 0.0:
             if rm > 0.0:
                 i -= _levels_to_skip(i, t_a, h, tp, rp, tm, rm)
@@ -126,13 +135,13 @@ def first_return(k, j, sgn, t_a, t_b, rate_a, fb, seg, ctx, hist, scratch):
                 continue
             top = locate(j, sgn, tp, rp, tm, rm, seg, ctx, hist, scratch)
             last = top
-        if sgn * event_value(k, tm, seg, ctx, hist, scratch) <= 0.0:
+        if gm <= 0.0:
             return last, tm
         if rm > 0.0:
             # turned up again before reaching zero? the bottom of the return decides
             fa = -rp if rp < 0.0 else 1e-300
             bottom = locate(j, -sgn, tp, fa, tm, -rm, seg, ctx, hist, scratch)
-            if sgn * event_value(k, bottom, seg, ctx, hist, scratch) <= 0.0:
+            if sgn * value_at(k, bottom, seg, ctx, hist, scratch) <= 0.0:
                 return last, bottom
             last = bottom
             break
@@ -182,12 +191,12 @@ def find_event(t_a, t_b, seg, ctx, hist, scratch, g_a, side_a, dirs_a, rates_a, 
         elif j >= 0 and sgn * g_a[j] < 0.0 and sgn * g_b[j] > 0.0:
             # Approaching, then receding within the step: does it touch at the extremum?
             ts = locate(j, -sgn, t_a, -sgn * g_a[j], t_b, -sgn * g_b[j], seg, ctx, hist, scratch)
-            if sgn * event_value(k, ts, seg, ctx, hist, scratch) <= 0.0:
+            if sgn * value_at(k, ts, seg, ctx, hist, scratch) <= 0.0:
                 right = ts
         if right < 0.0 or right > best_t or (right == best_t and best_k >= 0):
             continue
-        fl = sgn * event_value(k, left, seg, ctx, hist, scratch)
-        fr = sgn * event_value(k, right, seg, ctx, hist, scratch)
+        fl = sgn * value_at(k, left, seg, ctx, hist, scratch)
+        fr = sgn * value_at(k, right, seg, ctx, hist, scratch)
         if fl <= 0.0:
             # Round-off at the start of a step just after an event: treat it as the pre side.
             fl = 1e-300

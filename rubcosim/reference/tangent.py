@@ -99,6 +99,13 @@ def new_tangent(Phi, fd, t_fd):
 
 
 @nb.njit(cache=True)
+def rhs_at(t, y, mode, p, ip, hist, yd, dy):
+    """The system's right-hand side as a call, not inlined: for the sites that run once
+    per event (each inlined copy costs seconds of compilation)."""
+    full_rhs(t, y, mode, p, ip, hist, yd, dy)
+
+
+@nb.njit(cache=True)
 def jacobian(t, ys, mode, p, ip, hist, yd, fd, J, fp, fm):
     """J = df/dy at (t, ys) in ``mode`` by central differences of steps ``fd``."""
     n = ys.shape[0]
@@ -197,7 +204,7 @@ def fresh_stages(tan, t, h, y, K, mode, p, ip, hist, yd):
     Ys, fp = tan[9], tan[10]
     for s in range(1, N_STAGES):
         stage_point(K, s, y, h, Ys[s])
-        full_rhs(t + C[s] * h, Ys[s], mode, p, ip, hist, yd, fp)
+        rhs_at(t + C[s] * h, Ys[s], mode, p, ip, hist, yd, fp)
         for i in range(y.shape[0]):
             K[s, i] = fp[i]
 
@@ -219,8 +226,8 @@ def saltation(tan, k, te, ym, mode, yp, mode_new, p, ip, hist, yd):
     dirs = np.empty(N_EVENTS, dtype=np.int64)
     rates = np.empty(N_EVENTS, dtype=np.int64)
     grad = np.empty(n)
-    full_rhs(te, ym, mode, p, ip, hist, yd, fm)
-    full_rhs(te, yp, mode_new, p, ip, hist, yd, fp)
+    rhs_at(te, ym, mode, p, ip, hist, yd, fm)
+    rhs_at(te, yp, mode_new, p, ip, hist, yd, fp)
     for j in range(n):
         for i in range(n):
             ys[i] = ym[i]
