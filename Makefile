@@ -16,10 +16,11 @@ $(STAMP): pyproject.toml
 	$(PY) -m pip install --quiet -e '.[dev]'
 	touch $(STAMP)
 
-# Compile the numba kernels into the cache once (make run does it; the tests compile
-# what they use themselves, in their two workers).
+# Compile the numba kernels into the cache once, in two processes that split the
+# compiled forms between them (make run and make test both start with it; without it
+# the two test workers would compile the same engine at the same time).
 WARM := $(VENV)/.warm-stamp
-$(WARM): $(STAMP) $(wildcard components/*.py rubcosim/reference/*.py orchestrator/*.py)
+$(WARM): $(STAMP) $(wildcard components/*.py rubcosim/reference/*.py orchestrator/*.py rubcosim/analysis/*.py)
 	@echo "compiling the numba kernels into the cache once (rubcosim warm-up)"
 	$(VENV)/bin/rubcosim warm-up
 	touch $(WARM)
@@ -36,7 +37,7 @@ format: $(STAMP)
 	$(VENV)/bin/ruff format .
 	$(VENV)/bin/ruff check --fix .
 
-test: lint
+test: lint $(WARM)
 	$(PY) -m pytest -n 2 --durations=15
 
 # every benchmark the documents quote (benchmarks/catalog.py), then their tables copied
