@@ -75,7 +75,8 @@ def _parser() -> argparse.ArgumentParser:
     cli_ssp.add_parser(sub, SCENARIO_HELP)
     sub.add_parser("scenarios", help="list the bundled scenarios with their descriptions")
     warm = sub.add_parser(
-        "warm-up", help="compile the numba kernels into the cache once (make setup runs it)"
+        "warm-up",
+        help="compile the numba kernels into the cache once (make run and make test run it)",
     )
     warm.add_argument("--workers", type=int, default=2, help="processes (default 2)")
     build = sub.add_parser("build-fmus", help="build every unit as an FMI 2.0 co-simulation FMU")

@@ -2,9 +2,9 @@
 
 A fresh checkout has an empty numba cache: its first run compiles the engine,
 the unit stepper and the analysis kernels (a minute or more on two cores) for
-a simulation of milliseconds.  ``rubcosim warm-up`` (run by ``make setup``)
-does that once: short runs of bundled scenarios that reach every compiled
-path, in parallel processes where the paths do not overlap.  Every later
+a simulation of milliseconds.  ``rubcosim warm-up`` (run by ``make run`` and
+``make test``) does that once: short runs of bundled scenarios that reach every
+compiled path, in parallel processes where the paths do not overlap.  Every later
 process loads the compiled code from the cache (keyed by the sources, see
 ``rubcosim/__init__.py``), so a change of source compiles again, once.
 """
