@@ -170,7 +170,9 @@ def do_step(kind, ode_kind, exact, n_y, n_in, ode_idx, p, tol, model, st, t, h):
         if h > 0.0:
             y = exact_step(t, h, y, model, p[4], u)
     else:
-        h_next, _, _, status = advance(ode_kind, t, t + h, y, 0, st[H], p, u, tol[0], tol[1])
+        # np.int64, not a literal 0: numba compiles a literal argument as its own version
+        mode = np.int64(0)
+        h_next, _, _, status = advance(ode_kind, t, t + h, y, mode, st[H], p, u, tol[0], tol[1])
         st[H] = h_next
     bad = status != OK or not math.isfinite(st[H]) or not all_finite(y, n_y)
     if bad:

@@ -87,7 +87,7 @@ MAX_INDICATORS = 8
 LOCATE_TRIALS = 60
 
 
-@njit
+@njit(inline="always")  # called with literal ints: each call would be its own compile
 def _add(inds, n, unit, output, direction, kind, rate, proto):
     inds[n, 0], inds[n, 1], inds[n, 2] = unit, output, direction
     inds[n, 3], inds[n, 4], inds[n, 5] = kind, rate, proto
@@ -242,7 +242,7 @@ def _settle_contact(G, S, p, slipping_from):
     """Sliding with the sign of the slip, sticking when friction holds it, free when
     nothing presses the disc on (``RigidContact._settle_contact``)."""
     s = G.pr_stator[p]
-    if slipping_from == MODE_FREE and _set_mode(G, S, p, MODE_STICK):
+    if slipping_from == MODE_FREE and _set_mode(G, S, p, np.int64(MODE_STICK)):
         return 1
     threshold = G.pr_f[p, PF_V_CHAT] if slipping_from == MODE_FREE else math.inf
     mode = settle_mode(S.out[s, RIGID_SLIP], threshold, S.out[s, RIGID_HOLD_MARGIN],
@@ -250,7 +250,7 @@ def _settle_contact(G, S, p, slipping_from):
     if mode != int(S.prs[p, PS_MODE]) and _set_mode(G, S, p, mode):
         return 1
     if S.out[s, RIGID_NORMAL] <= 0.0:
-        return _set_mode(G, S, p, MODE_FREE)
+        return _set_mode(G, S, p, np.int64(MODE_FREE))
     return 0
 
 
@@ -268,7 +268,7 @@ def _impact(G, S, p):
     S.prs[p, PS_LAST_IMPACT] = time
     rebound = S.out[s, RIGID_GAP_RATE]
     if chattering_ended(rebound, G.pr_f[p, PF_V_CHAT], flight, G.pr_f[p, PF_MIN_FLIGHT]):
-        return _settle_contact(G, S, p, MODE_FREE)
+        return _settle_contact(G, S, p, np.int64(MODE_FREE))
     return 0
 
 
@@ -297,7 +297,7 @@ def event(G, S, kind, p):
         if kind == EV_IMPACT:
             status = _impact(G, S, p)
         elif kind == EV_RELEASE:
-            status = _set_mode(G, S, p, MODE_FREE)
+            status = _set_mode(G, S, p, np.int64(MODE_FREE))
         else:
             status = _settle_contact(G, S, p, int(S.prs[p, PS_MODE]))
     if status:

@@ -33,6 +33,7 @@ from .flat_events import (
 from .flat_layout import (
     CHECKPOINT_EVERY,
     DONE,
+    EV_IMPACT,
     EVENTS_LOCATE,
     EVENTS_OFF,
     F_MAX_STEP,
@@ -98,12 +99,12 @@ def _record_due(G, S):
 def _checkpoint(S):
     """Save what a replay restores: the units and the master's state (``_master_state``)."""
     S.cnt[N_SNAPSHOTS] += 1
-    _copy(S, True)
+    _copy(S, np.bool_(True))
 
 
 @njit
 def _replay(S):
-    _copy(S, False)
+    _copy(S, np.bool_(False))
 
 
 @njit
@@ -275,7 +276,8 @@ def run_loop(G, S, max_steps):  # noqa: C901 - one loop, as the Python master's
             for p in range(G.pr_kind.shape[0]):
                 if overdue(G, S, p):
                     S.cnt[N_LATE] += 1
-                    if event(G, S, 0, p):
+                    # np.int64: a literal argument would be a compiled version of its own
+                    if event(G, S, np.int64(EV_IMPACT), p):
                         return FAILED
         if _check_finite(G, S):
             return FAILED

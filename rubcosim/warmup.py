@@ -33,7 +33,8 @@ def _engines() -> str:
 
 def _units() -> str:
     """The co-simulation's units (the compiled unit stepper for ODE and hybrid units) and
-    the master's compiled loop, then the engine with a delay: last, so that what it
+    the master's compiled loop, then the engine with a delay (``fast``, then the
+    ``accurate`` engine's compiled event handling on it): last, so that what it
     shares with the plain engine (event maps, outputs) is in the cache by then instead
     of being compiled in both processes at once."""
     from . import api
@@ -42,7 +43,8 @@ def _units() -> str:
     api.cosimulate("jeffcott_elastic_casing", "direct", set={"sim.t_end": 0.002})
     api.cosimulate("impact_duffing", "direct", set={"sim.t_end": 5.0})
     api.simulate("jeffcott_delayed_feedback", "fast", set={"sim.t_end": 0.005})
-    return "co-simulation units and master, the engine with a delay"
+    api.simulate("jeffcott_delayed_feedback", "accurate", set={"sim.t_end": 0.002})
+    return "co-simulation units and master, the engine with a delay (fast and accurate)"
 
 
 JOBS: tuple[Callable[[], str], ...] = (_engines, _units)

@@ -156,9 +156,10 @@ def map_many(
         mode = modes0[j]
         st = STATUS_OK
         for k in range(n_periods):
-            st, done, mode = _strobe(
-                y, mode, t0 + k * period, period, 0, 1, p, ip, tol, bufs, pts, imp, md, no_section
-            )
+            # np.int64, not literals: a literal argument is a compiled version of its own
+            one_period = (np.int64(0), np.int64(1))
+            st, done, mode = _strobe(y, mode, t0 + k * period, period, *one_period, p, ip, tol,
+                                     bufs, pts, imp, md, no_section)  # fmt: skip
             if st != STATUS_OK:
                 break
             total += imp[0]

@@ -157,7 +157,7 @@ def integrate(y0, mode, t0, t_end, p, ip, tol, out, hist, dde, y_final, tan):
     ev = (g_a, side, dirs, rates, g_b)  # what after_step reads and updates
     forced_slot, forced_side = -1, 0
     h_last = 0.0
-    cnt[C_EVAL] = record_point(t, y, mode, p, ip, hist, t_eval, 0, rec, yd, obuf)
+    cnt[C_EVAL] = record_point(t, y, mode, p, ip, hist, t_eval, np.int64(0), rec, yd, obuf)
     while t < t_end and cnt[C_STATUS] == STATUS_OK:
         bound = next_breakpoint(t, t_end, p, ip, queue, qmeta)
         start_sides(t, y, mode, p, ip, hist, g_a, dirs, rates, side, yd, forced_slot, forced_side)

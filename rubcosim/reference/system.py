@@ -332,7 +332,7 @@ def rotor_apply(k, t, y, yd, mode, p, ip):
     vt = -y[2] * ny + y[3] * nx
     n = constraint_normal_force(fx, fy, nx, ny, vt, 0.0, d, d, p[P_ROTOR_MASS], 0.0)
     if n > 0.0:
-        return settle_contact(t, y, yd, p, ip, p[P_VCHAT], MODE_FREE), KIND_IMPACT
+        return settle_contact(t, y, yd, p, ip, p[P_VCHAT], np.int64(MODE_FREE)), KIND_IMPACT
     return MODE_FREE, KIND_IMPACT
 
 
