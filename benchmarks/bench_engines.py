@@ -39,7 +39,11 @@ runs).  The wall time covers the whole call (``simulate(...)`` or the scipy loop
 The floor of ``fast`` (issue: "within 2x of its right-hand-side floor"): its
 right-hand-side calls per period times the cost of one compiled call, measured in a
 compiled loop of calls spread over a forcing period; the ratio of ``fast``'s time to
-that floor is what its step control, event location and bookkeeping add.
+that floor is what its step control, event location and bookkeeping add.  The calls
+of that loop are independent, so the processor overlaps them (the forcing's ``cos``
+of one call with the arithmetic of the next); the stages of a step cannot overlap,
+each waiting for the ones before.  So a second floor is printed beside it, from a
+loop of calls that each wait for the one before; the target stays judged on the first.
 
 Run from the repository root::
 
@@ -433,18 +437,37 @@ def _rhs_calls(y, p, ip, period, calls):  # pragma: no cover - compiled
     return acc
 
 
-def rhs_cost(system: System, state: np.ndarray, repeats: int) -> dict[str, float]:
+@nb.njit
+def _chained_rhs_calls(y0, p, ip, period, calls):  # pragma: no cover - compiled
+    """:func:`_rhs_calls` with each call's state depending on the previous call's result
+    (``y0 + 1e-9 * f``), as a Runge-Kutta stage depends on the stages before it: the
+    processor cannot overlap one call with the next (the forcing's ``cos`` included)."""
+    y = y0.copy()
+    dy = np.empty_like(y)
+    yd = np.empty(N_DELAYED)
+    for k in range(calls):
+        full_rhs(period * k / calls, y, 0, p, ip, None, yd, dy)
+        for i in range(y.shape[0]):
+            y[i] = y0[i] + 1e-9 * dy[i]
+    return y[-1]
+
+
+def rhs_cost(
+    system: System, state: np.ndarray, repeats: int, chained: bool = False
+) -> dict[str, float]:
     """Cost of one compiled right-hand-side call (s): median and range over ``repeats``
-    loops of 200,000 calls, at the case's state on its attractor."""
+    loops of 200,000 calls, at the case's state on its attractor; ``chained``: each
+    call waits for the one before (:func:`_chained_rhs_calls`)."""
     p = tuple(float(v) for v in system.p)
     ip = tuple(int(v) for v in system.ip)
     y = np.ascontiguousarray(state, dtype=float)
     calls = 200_000
-    _rhs_calls(y, p, ip, system.forcing_period, 10)  # compile
+    loop = _chained_rhs_calls if chained else _rhs_calls
+    loop(y, p, ip, system.forcing_period, 10)  # compile
     costs = []
     for _ in range(max(5, repeats)):
         t0 = time.perf_counter()
-        _rhs_calls(y, p, ip, system.forcing_period, calls)
+        loop(y, p, ip, system.forcing_period, calls)
         costs.append((time.perf_counter() - t0) / calls)
     return {"median_s": statistics.median(costs), "min_s": min(costs), "max_s": max(costs)}
 
@@ -501,6 +524,12 @@ def bench_case(case: Case, periods: int, repeats: int, target: float) -> dict[st
     out["fast_floor_per_period_s"] = floor
     out["fast_over_floor"] = ints["fast"]["wall_per_period_s"] / floor
     out["target_fast_over_floor"] = 2.0
+    # the same floor with calls that wait for each other, as the stages of a step do
+    chained = rhs_cost(system, state, repeats, chained=True)
+    out["rhs_chained_call_s"] = chained
+    out["fast_over_chained_floor"] = ints["fast"]["wall_per_period_s"] / (
+        ints["fast"]["rhs_evaluations_per_period"] * chained["median_s"]
+    )
     out["speedup_fast_vs_scipy_loop"] = ints["scipy_loop"]["wall_median_s"] / fast
     out["speedup_fast_vs_accurate"] = ints["accurate"]["wall_median_s"] / fast
     out["target_fast_vs_scipy_loop"] = 100.0
@@ -554,10 +583,14 @@ def markdown(report: dict[str, Any]) -> str:
     lines += [
         "Distance of `fast` to its floor: its right-hand-side calls per period times the cost "
         "of one compiled call (median of loops of 200,000 calls over one forcing period, "
-        "min-max in brackets).",
+        "min-max in brackets).  The target is judged on that floor.  Within a Runge-Kutta "
+        "step each stage's state depends on the stages before it, so the calls cannot "
+        "overlap as they do in that loop; the last two columns measure a call in a loop "
+        "where each call waits for the one before, and `fast`'s distance to that floor.",
         "",
-        "| case | rhs call | floor / period | `fast` / period | `fast` / floor | target (<= 2x) |",
-        "|---|---:|---:|---:|---:|---|",
+        "| case | rhs call | floor / period | `fast` / period | `fast` / floor | target (<= 2x) "
+        "| chained rhs call | `fast` / chained floor |",
+        "|---|---:|---:|---:|---:|---|---:|---:|",
     ]
     for case in report["cases"]:
         c = case["rhs_call_s"]
@@ -566,13 +599,25 @@ def markdown(report: dict[str, Any]) -> str:
             f"| {case['name']} | {c['median_s'] * 1e9:.1f} ns ({c['min_s'] * 1e9:.1f}-"
             f"{c['max_s'] * 1e9:.1f}) | {_fmt_time(case['fast_floor_per_period_s'])} | "
             f"{_fmt_time(case['integrators']['fast']['wall_per_period_s'])} | {ratio:.2g}x | "
-            f"{'met' if ratio <= case['target_fast_over_floor'] else 'NOT met'} |"
+            f"{'met' if ratio <= case['target_fast_over_floor'] else 'NOT met'} | "
+            + _chained_cells(case)
         )
     lines.append("")
     for case in report["cases"]:
         lines.append(f"- **{case['name']}**: {case['description']}.")
     lines.append("")
     return "\n".join(lines)
+
+
+def _chained_cells(case: dict[str, Any]) -> str:
+    """The chained-call columns of a case (absent from results written before them)."""
+    c = case.get("rhs_chained_call_s")
+    if c is None:
+        return "- | - |"
+    return (
+        f"{c['median_s'] * 1e9:.1f} ns ({c['min_s'] * 1e9:.1f}-{c['max_s'] * 1e9:.1f}) | "
+        f"{case['fast_over_chained_floor']:.2g}x |"
+    )
 
 
 def main(argv: list[str] | None = None) -> int:
