@@ -610,10 +610,8 @@ def markdown(report: dict[str, Any]) -> str:
 
 
 def _chained_cells(case: dict[str, Any]) -> str:
-    """The chained-call columns of a case (absent from results written before them)."""
-    c = case.get("rhs_chained_call_s")
-    if c is None:
-        return "- | - |"
+    """The chained-call columns of a case."""
+    c = case["rhs_chained_call_s"]
     return (
         f"{c['median_s'] * 1e9:.1f} ns ({c['min_s'] * 1e9:.1f}-{c['max_s'] * 1e9:.1f}) | "
         f"{case['fast_over_chained_floor']:.2g}x |"
