@@ -24,6 +24,10 @@ if not _BUNDLED or os.environ.get("RUBCOSIM_NUMBA") == "1":
     except ImportError:  # exercised by the FMU tests, in a process without numba
         _numba = None
 USE_NUMBA = _numba is not None
+if USE_NUMBA:
+    from .numba_inlining import install as _install_inlining_copy
+
+    _install_inlining_copy()
 
 
 def njit(
