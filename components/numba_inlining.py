@@ -63,11 +63,13 @@ def install() -> bool:
         return False
 
     def inline_ir(self: Any, *args: Any, **kwargs: Any) -> Any:
-        icc.copy = BlockGraphCopy()
+        # an inlining can compile another function, which inlines in turn: restore
+        # what was there, not the module
+        previous, icc.copy = icc.copy, BlockGraphCopy()
         try:
             return original(self, *args, **kwargs)
         finally:
-            icc.copy = copy
+            icc.copy = previous
 
     inline_ir._rubcosim_block_graph_copy = True  # type: ignore[attr-defined]
     inline_ir.__wrapped__ = original  # type: ignore[attr-defined]
