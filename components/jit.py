@@ -25,9 +25,9 @@ if not _BUNDLED or os.environ.get("RUBCOSIM_NUMBA") == "1":
         _numba = None
 USE_NUMBA = _numba is not None
 if USE_NUMBA:
-    from .numba_inlining import install as _install_inlining_copy
+    from .numba_inlining import install_before_first_compile
 
-    _install_inlining_copy()
+    install_before_first_compile()
 
 
 def njit(

@@ -16,12 +16,18 @@ nothing with the callee's IR (``copy_ir`` exists because inlining mutates the
 copy), but its blocks share one copy of the scope, like the original's blocks
 share one scope.  The compiled code is the same.  It patches nothing when numba
 does not have the structure it was written against (checked, not assumed).
+
+:func:`install_before_first_compile` defers the patch to the start of the first
+compilation: numba's inliner module takes 25 ms to import, and a process that
+only loads compiled code from the cache (a warm ``rubcosim run``) never needs it.
 """
 
 from __future__ import annotations
 
 import copy
 from typing import Any
+
+_DEFERRED: list[Any] = []  # the listener of install_before_first_compile, once registered
 
 
 class BlockGraphCopy:
@@ -75,3 +81,27 @@ def install() -> bool:
     inline_ir.__wrapped__ = original  # type: ignore[attr-defined]
     worker.inline_ir = inline_ir
     return True
+
+
+def install_before_first_compile() -> None:
+    """Run :func:`install` when numba starts compiling for the first time in this
+    process (its ``numba:compile`` event fires on a cache miss, not on a cache load)."""
+    if _DEFERRED:
+        return
+    from numba.core import event
+
+    class InstallOnCompile(event.Listener):
+        def __init__(self) -> None:
+            self.installed = False
+
+        def on_start(self, event: Any) -> None:
+            if not self.installed:
+                self.installed = True
+                install()
+
+        def on_end(self, event: Any) -> None:
+            pass
+
+    listener = InstallOnCompile()
+    event.register("numba:compile", listener)
+    _DEFERRED.append(listener)

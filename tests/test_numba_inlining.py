@@ -5,6 +5,9 @@ original, one scope for all blocks; and inlined code computes what Python does."
 from __future__ import annotations
 
 import copy
+import subprocess
+import sys
+import textwrap
 
 import numba
 import pytest
@@ -33,6 +36,32 @@ def test_installed_on_this_numba_and_idempotent():
     assert getattr(wrapper, "_rubcosim_block_graph_copy", False)
     assert not hasattr(wrapper.__wrapped__, "_rubcosim_block_graph_copy")
     assert inline_closurecall.copy is copy  # swapped only during a call
+
+
+def test_the_patch_waits_for_the_first_compile():
+    """Wiring: importing the package does not import numba's inliner (a warm run never
+    needs it); the first compilation installs the patch before it inlines."""
+    script = textwrap.dedent(
+        """
+        import sys
+        import numba
+        from rubcosim.components import jit
+        assert "numba.core.inline_closurecall" not in sys.modules
+
+        @numba.njit(inline="always")
+        def inner(x):
+            return 2.0 * x
+
+        @numba.njit
+        def outer(x):
+            return inner(x) + 1.0
+
+        assert outer(3.0) == 7.0
+        from numba.core.inline_closurecall import InlineWorker
+        assert InlineWorker.inline_ir._rubcosim_block_graph_copy
+        """
+    )
+    subprocess.run([sys.executable, "-c", script], check=True, timeout=120)
 
 
 def test_block_graph_copy_shares_one_new_scope_and_nothing_with_the_original():
