@@ -14,7 +14,7 @@ import pytest
 from numba.core import inline_closurecall
 from numba.core.compiler import run_frontend
 
-from rubcosim.components import jit  # noqa: F401  (installs the copy)
+from rubcosim.components import jit  # noqa: F401  (registers the install on first compile)
 from rubcosim.components.numba_inlining import BlockGraphCopy, install
 
 
