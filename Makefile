@@ -10,10 +10,12 @@ OUT ?= results/jeffcott_rigid_stator
 
 setup: $(STAMP)
 
+# setuptools announces its editable finder (the layout maps components/, fmus/ and
+# orchestrator/ into rubcosim.*) with an information-only warning; that one is silenced.
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
-	$(PY) -m pip install --quiet -e '.[dev]'
+	PYTHONWARNINGS='ignore:Editable installation' $(PY) -m pip install --quiet -e '.[dev]'
 	touch $(STAMP)
 
 # Compile the numba kernels into the cache once, in two processes that split the

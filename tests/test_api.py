@@ -159,6 +159,31 @@ def test_cli_lists_the_bundled_scenarios(capsys):
     assert "Jeffcott rotor, centred rigid stator" in flagship
 
 
+def test_the_rubcosim_executable_runs_console_main_and_returns_its_exit_code(tmp_path):
+    """The installed ``rubcosim`` script is :func:`console_main`; bad input still exits 2."""
+    script = Path(sys.executable).with_name("rubcosim").read_text()
+    assert "from rubcosim.cli import console_main" in script
+    ok = subprocess.run([sys.executable, "-m", "rubcosim.cli", "scenarios"], capture_output=True)
+    assert ok.returncode == 0 and b"impact_duffing" in ok.stdout
+    bad = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "rubcosim.cli",
+            "run",
+            "impact_duffing",
+            "--out",
+            "out",
+            "--set",
+            "oscillator.restitution=1.5",
+        ],
+        capture_output=True,
+        text=True,
+        cwd=tmp_path,
+    )
+    assert bad.returncode == 2 and "oscillator.restitution" in bad.stderr
+
+
 def test_the_wheel_ships_the_scenarios(tmp_path):
     # built from a copy of the sources: setuptools leaves build/ beside pyproject.toml
     src = tmp_path / "src"
