@@ -208,8 +208,8 @@ def main(argv: list[str] | None = None) -> int:
         f"adaptive master makes them) with changing inputs and input derivatives; median "
         f"over {args.repeats} runs of {args.steps} steps. The exact step takes propagators "
         f"cached per step size when a step has the length of the one before "
-        f"(components/propagator_cache.py), one (n + 5) x (n + 5) matrix exponential otherwise. "
-        + stamp_line(meta),
+        f"(components/propagator_cache.py), modal coordinates otherwise "
+        f"(components/modal_propagation.py). " + stamp_line(meta),
         "",
         "| FMU | FMI call | per call, median | min - max |",
         "|---|---|---:|---:|",

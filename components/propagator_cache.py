@@ -17,9 +17,9 @@ one ``n x 6n`` matrix-vector product.
 
 Inside an FMU (plain numpy, where every numpy call costs about a microsecond) the
 rotor units take this path when a step has the length of the one before (a tool at
-a fixed communication step: one exponential for the whole run), and the per-step
-exponential of :func:`.linear_propagation.exact_step` otherwise (a master that
-changes the step would pay a 6n x 6n exponential for nothing).  The last step's
+a fixed communication step: one exponential for the whole run), and modal
+coordinates otherwise (:mod:`.modal_propagation`; a master that changes the step
+would pay a 6n x 6n exponential for nothing).  The last step's
 length is part of the unit's state, so a step replayed from a restored state takes
 the same path and repeats bit for bit.  Compiled, the per-step 9 x 9 exponential in
 plain loops costs less than a miss here, so the installed package always takes it.

@@ -21,6 +21,7 @@ from .declaration import FmuIdentity, Provided, UnitType, Wire, planar_states
 from .flat_units import RowOutputs
 from .jit import USE_NUMBA
 from .linear_propagation import affine_model, exact_step
+from .modal_propagation import ModalPropagator
 from .parameters import choice
 from .propagator_cache import PropagatorCache
 from .rotor import (
@@ -118,16 +119,29 @@ class _Rotor(RowOutputs, Unit):
             self._cache_of_steps = cache
         return cache
 
+    def _modal(self) -> ModalPropagator | None:
+        """The exact step in modal coordinates (:mod:`.modal_propagation`), None when
+        the unit's matrix has no well-conditioned eigenvectors: not state either."""
+        if not hasattr(self, "_modal_steps"):
+            self._modal_steps = ModalPropagator.build(self._linear_model(), self.params["speed"])
+        return self._modal_steps
+
     def _advance(self, t: float, h: float) -> None:
         self._apply_reset()
         q = self.params
         st = self.state
         u = self.input_rows(self.ode_inputs)
         if q["integrator"] == "exact":
-            if h > 0.0 and (USE_NUMBA or h != st.get("last_step")):
+            modal = None if USE_NUMBA or h <= 0.0 else self._modal()
+            if h > 0.0 and USE_NUMBA:
                 st["y"] = exact_step(t, h, st["y"], self._linear_model(), q["speed"], u)
-            elif h > 0.0:  # plain numpy (an FMU) at a step that recurs: cached propagators
+            elif h > 0.0 and h == st.get("last_step"):
+                # plain numpy (an FMU) at a step that recurs: cached propagators
                 st["y"] = self._propagators().step(t, h, st["y"], u)
+            elif modal is not None:  # plain numpy at a new step: modal coordinates
+                st["y"] = modal.step(t, h, st["y"], u)
+            elif h > 0.0:  # ... unless A has no well-conditioned eigenvectors
+                st["y"] = exact_step(t, h, st["y"], self._linear_model(), q["speed"], u)
             if h > 0.0:
                 st["last_step"] = h  # state: a replay from a restore takes the same path
             return

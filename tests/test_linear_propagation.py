@@ -11,6 +11,7 @@ import pytest
 import scipy.linalg
 
 from rubcosim.components.linear_propagation import affine_model, exact_step, expm
+from rubcosim.components.modal_propagation import ModalPropagator
 from rubcosim.components.propagator_cache import PropagatorCache
 from rubcosim.components.rotor import free_whirl
 from rubcosim.components.rotor_unit import JeffcottRotorUnit
@@ -164,3 +165,59 @@ def test_cached_propagators_agree_with_the_per_step_exponential_under_inputs():
 def test_bad_unit_integrator_setting_is_named():
     with pytest.raises(SettingsError, match="cosim.unit_integrator"):
         cosim_settings({"unit_integrator": "euler"})
+
+
+@pytest.mark.parametrize("speed_ratio", [0.5, 1.0, 3.0])
+def test_modal_steps_follow_the_closed_form_whirl_and_resonance(speed_ratio):
+    # an FMU's step of a new length: modal coordinates, steps short and long (|lambda h|
+    # from 3e-4, the series, to 95, the closed forms), the undamped resonance included
+    w = speed_ratio * WN
+    c = 0.0 if speed_ratio == 1.0 else 2.0 * 0.05 * M * WN
+    model = affine_model(JEFFCOTT, np.array([M, c, K, E, w, 0.0]), 4, 2, w)
+    modal = ModalPropagator.build(model, w)
+    assert modal is not None and len(modal.lam) == 2  # one mode per conjugate pair
+    if c:
+        amp, phase = free_whirl(M, c, K, E, w)
+        exact = lambda t: _whirl(t, amp, phase, w)  # noqa: E731
+    else:
+
+        def exact(t):  # x'' + wn^2 x = e wn^2 cos(wn t) from rest at the origin
+            s, co = math.sin(w * t), math.cos(w * t)
+            return 0.5 * E * np.array([w * t * s, -w * t * co + s, w * (s + w * t * co),
+                                       w * (-co + w * t * s) + w * co])  # fmt: skip
+
+    t, y = 0.0371, exact(0.0371)
+    for h in (1e-6, 3e-4, 2.9e-4, 0.02, 0.3, 1e-5):
+        y = modal.step(t, h, y, np.zeros((2, 3)))
+        t += h
+    scale = np.abs(exact(t)).max()
+    assert np.abs(y - exact(t)).max() < 1e-12 * scale
+
+
+def test_modal_steps_agree_with_the_per_step_exponential_under_inputs():
+    rng = np.random.default_rng(5)
+    w = 1.3 * WN
+    p = np.array([M, 30.0, K, E, w, 9.81, 10.0, 2.0, 5.0])
+    model = affine_model(TWO_MASS, p, 8, 4, w)
+    modal = ModalPropagator.build(model, w)
+    assert modal is not None
+    scales = np.tile(SCALES4, 2)
+    for h in (1e-7, 1e-5, 4e-4, 0.03, 1.0):
+        for _ in range(3):
+            y0 = rng.normal(size=8) * scales
+            u = rng.normal(size=(4, 3)) * np.array([20.0, 20.0 * WN, 20.0 * WN**2])
+            t0 = rng.uniform(0.0, 2.0)
+            ref = exact_step(t0, h, y0, model, w, u)
+            err = np.max(np.abs(modal.step(t0, h, y0, u) - ref) / scales)
+            # round-off times the eigenvectors' condition number (3.6e3 here: the
+            # journal's rigid-body modes beside the disc's), relative to the state
+            assert err < 5e-12 * max(1.0, np.max(np.abs(ref) / scales))
+
+
+@pytest.mark.parametrize("damping, stiffness", [(2.0 * math.sqrt(K * M), K), (0.0, 0.0)])
+def test_modal_coordinates_are_refused_where_the_matrix_is_defective(damping, stiffness):
+    # critical damping (a double eigenvalue with one eigenvector) and a free rigid disc
+    # (x'' = 0): no eigenvector basis, so the unit keeps the matrix exponential
+    w = 0.7 * WN
+    model = affine_model(JEFFCOTT, np.array([M, damping, stiffness, E, w, 0.0]), 4, 2, w)
+    assert ModalPropagator.build(model, w) is None

@@ -133,7 +133,7 @@ def integrate(y0, mode, t0, t_end, p, ip, tol, out, hist, dde, y_final, tan):
     breakpoint queue; the final state goes to ``y_final``.  ``tan``: a tangent matrix
     carried along (:func:`rubcosim.reference.tangent.new_tangent`; delay-free systems)
     or None.  Every caller passes it, None included: numba compiles an omitted
-    argument and a None apart, and this engine takes a minute and a half to compile.
+    argument and a None apart, and this engine takes the best part of a minute to compile.
     """
     rtol, atol, max_step = tol
     t_eval, rec, evlog, cnt = out
