@@ -29,7 +29,7 @@ from .controller import (
     switch_interval,
 )
 from .declaration import Derived, FmuIdentity, Need, UnitType, Wire
-from .jit import njit
+from .jit import USE_NUMBA, njit
 from .parameters import nonnegative
 from .unit import Unit, planar_motion, real_signal
 
@@ -112,14 +112,56 @@ def _lookup(samples, tq, left, out):  # pragma: no cover - compiled
     _interpolate_rows(samples, rows, n, tq, left, 3, out, 2)
 
 
+def lagrange_cubic(ts: np.ndarray, zs: np.ndarray, tq: float) -> np.ndarray:
+    """Interpolate rows ``zs`` given at times ``ts`` (up to 4) at ``tq``."""
+    out = np.zeros(zs.shape[1])
+    for i in range(ts.size):
+        w = 1.0
+        for j in range(ts.size):
+            if j != i:
+                w *= (tq - ts[j]) / (ts[i] - ts[j])
+        out += w * zs[i]
+    return out
+
+
+def _interpolate_arrays(samples: np.ndarray, tq: float, side: str) -> np.ndarray:
+    """:func:`_interpolate_rows` of every row, by array operations."""
+    ts = samples[:, 0]
+    if tq < ts[0] or (tq == ts[0] and (side == "left" or ts.size == 1 or ts[1] != ts[0])):
+        return samples[0, 1:]
+    jumps = np.flatnonzero(ts[1:] == ts[:-1]) + 1
+    k = int(np.searchsorted(jumps, int(np.searchsorted(ts, tq, side=side)), side="right"))
+    start = jumps[k - 1] if k > 0 else 0
+    stop = jumps[k] if k < jumps.size else ts.size
+    piece = samples[start:stop]
+    i = int(np.searchsorted(piece[:, 0], tq))
+    lo = max(min(i - 2, piece.shape[0] - 4), 0)
+    window = piece[lo : lo + 4]
+    return lagrange_cubic(window[:, 0], window[:, 1:], tq)
+
+
+def lookup_arrays(samples: np.ndarray, tq: float, side: str = "right") -> np.ndarray:
+    """:func:`lookup` by array operations: a dozen numpy calls whatever the history's
+    length, where the compiled loops would be hundreds of Python steps (an FMU's plain
+    Python).  The two agree bit for bit (``tests/test_units.py``)."""
+    ts = samples[:, 0]
+    same_z = np.zeros(ts.size, dtype=bool)
+    same_z[1:] = (ts[1:] == ts[:-1]) & np.all(samples[1:, 1:3] == samples[:-1, 1:3], axis=1)
+    z = _interpolate_arrays(samples[~same_z][:, :3], tq, side)
+    return np.concatenate((z, _interpolate_arrays(samples[:, [0, 3, 4]], tq, side)))
+
+
 def lookup(samples: np.ndarray, tq: float, side: str = "right") -> np.ndarray:
     """``(zx, zy, Sx, Sy)`` at ``tq`` from rows ``(t, zx, zy, Sx, Sy)``: the signal and
     the filter each interpolated within its own continuous pieces (cubic Lagrange
     through the four samples around ``tq``; two samples at one time mark a jump, and at
     that time ``side="left"`` takes the left limit; a jump of the filter alone leaves
     z continuous: its two samples agree in z and split no z stencil); the first sample
-    before the first time.  Compiled: the history holds hundreds of rows and the
-    output is looked up at every macro step."""
+    before the first time.  Compiled where numba runs (the history holds hundreds of
+    rows and the output is looked up at every macro step), by array operations in an
+    FMU's plain Python (:func:`lookup_arrays`)."""
+    if not USE_NUMBA:
+        return lookup_arrays(samples, tq, side)
     out = np.empty(4)
     _lookup(np.ascontiguousarray(samples, dtype=np.float64), float(tq), side == "left", out)
     return out

@@ -12,7 +12,7 @@ from rubcosim.components import jit, unit_odes
 from rubcosim.components.bearing import oilfilm_force, oilfilm_sigma
 from rubcosim.components.catalog import UNIT_TYPES
 from rubcosim.components.controller import base_delay
-from rubcosim.components.controller_unit import lookup
+from rubcosim.components.controller_unit import lagrange_cubic, lookup, lookup_arrays
 from rubcosim.components.parameters import ParameterError
 from rubcosim.components.rotor import free_whirl, jeffcott_force
 from rubcosim.components.stator import penalty_contact_force, rigid_impact
@@ -312,6 +312,12 @@ def test_base_delay_checks():
         base_delay({**p, "delay": 0.1, "modulation_amplitude": 0.2}, 1.0)
 
 
+def test_lagrange_cubic_is_exact_for_cubics():
+    ts = np.array([0.0, 0.3, 0.7, 1.0])
+    zs = np.stack([ts**3 - ts, 2 * ts], axis=1)
+    assert lagrange_cubic(ts, zs, 0.5) == pytest.approx([0.125 - 0.5, 1.0])
+
+
 def test_history_lookup_is_exact_for_cubics_and_takes_each_side_of_a_jump():
     # z = t^3 - t and S = 2 t sampled unevenly: cubic Lagrange reproduces them exactly
     ts = np.array([0.0, 0.1, 0.3, 0.45, 0.7, 1.0, 1.2])
@@ -326,42 +332,8 @@ def test_history_lookup_is_exact_for_cubics_and_takes_each_side_of_a_jump():
     assert lookup(jump, 0.45, "right") == pytest.approx([5.0, 6.0, 7.0, 8.0], rel=1e-13)
 
 
-def _reference_lookup(samples: np.ndarray, tq: float, side: str = "right") -> np.ndarray:
-    """The history lookup as numpy array operations (the controller's former code): a
-    second implementation of the compiled one's rules."""
-
-    def lagrange(ts, zs):
-        out = np.zeros(zs.shape[1])
-        for i in range(ts.size):
-            w = 1.0
-            for j in range(ts.size):
-                if j != i:
-                    w *= (tq - ts[j]) / (ts[i] - ts[j])
-            out += w * zs[i]
-        return out
-
-    def interpolate(samples):
-        ts = samples[:, 0]
-        if tq < ts[0] or (tq == ts[0] and (side == "left" or ts.size == 1 or ts[1] != ts[0])):
-            return samples[0, 1:]
-        jumps = np.flatnonzero(ts[1:] == ts[:-1]) + 1
-        k = int(np.searchsorted(jumps, int(np.searchsorted(ts, tq, side=side)), side="right"))
-        start = jumps[k - 1] if k > 0 else 0
-        stop = jumps[k] if k < jumps.size else ts.size
-        piece = samples[start:stop]
-        i = int(np.searchsorted(piece[:, 0], tq))
-        lo = max(min(i - 2, piece.shape[0] - 4), 0)
-        return lagrange(piece[lo : lo + 4, 0], piece[lo : lo + 4, 1:])
-
-    ts = samples[:, 0]
-    same_z = np.zeros(ts.size, dtype=bool)
-    same_z[1:] = (ts[1:] == ts[:-1]) & np.all(samples[1:, 1:3] == samples[:-1, 1:3], axis=1)
-    z = interpolate(samples[~same_z][:, :3])
-    return np.concatenate((z, interpolate(samples[:, [0, 3, 4]])))
-
-
 @pytest.mark.parametrize("seed", range(6))
-def test_history_lookup_agrees_with_array_operations_bit_for_bit(seed):
+def test_compiled_history_lookup_agrees_with_array_operations_bit_for_bit(seed):
     # random histories with jumps of both signals and of the filter alone, queried at,
     # between and beyond the samples, on both sides
     rng = np.random.default_rng(seed)
@@ -378,7 +350,7 @@ def test_history_lookup_agrees_with_array_operations_bit_for_bit(seed):
     queries = np.concatenate((rows[:, 0], rng.uniform(-0.1, 1.1, 20)))
     for tq in queries:
         for side in ("left", "right"):
-            assert np.array_equal(lookup(rows, tq, side), _reference_lookup(rows, tq, side))
+            assert np.array_equal(lookup(rows, tq, side), lookup_arrays(rows, tq, side))
 
 
 def _reference_oscillator(params: dict, times: np.ndarray) -> np.ndarray:
