@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import gc
+import os
 import shutil
 import sys
 from typing import Any
@@ -409,7 +410,13 @@ def console_main() -> int:
     closes files. Callers in-process keep using :func:`main`, which freezes nothing.
     """
     gc.freeze()
-    code = main()
+    try:
+        code = main()
+    except BrokenPipeError:
+        # the reader went away (``rubcosim basins ... | head -1``): stop quietly, and keep
+        # Python from reporting the failed flush of stdout at exit
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 1
     gc.freeze()
     return code
 

@@ -184,6 +184,26 @@ def test_the_rubcosim_executable_runs_console_main_and_returns_its_exit_code(tmp
     assert bad.returncode == 2 and "oscillator.restitution" in bad.stderr
 
 
+def test_the_executable_stops_quietly_when_its_reader_goes_away():
+    # `rubcosim ... | head -1` on a long output: the pipe closes after the first line
+    child = (
+        "import sys, rubcosim.cli as cli\n"
+        "def noisy(argv=None):\n"
+        "    for i in range(200000):\n"
+        "        print('line', i)\n"
+        "    return 0\n"
+        "cli.main = noisy\n"
+        "sys.exit(cli.console_main())\n"
+    )
+    p = subprocess.Popen(
+        [sys.executable, "-c", child], stdout=subprocess.PIPE, stderr=subprocess.PIPE
+    )
+    assert p.stdout.readline() == b"line 0\n"
+    p.stdout.close()
+    err = p.stderr.read().decode()
+    assert p.wait() == 1 and err == ""
+
+
 def test_the_wheel_ships_the_scenarios(tmp_path):
     # built from a copy of the sources: setuptools leaves build/ beside pyproject.toml
     src = tmp_path / "src"
