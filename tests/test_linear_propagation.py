@@ -118,23 +118,29 @@ def test_rotor_unit_steps_exactly_by_default_and_dop853_on_request():
         JeffcottRotorUnit.example(integrator="rk4")
 
 
-@pytest.mark.parametrize("speed_ratio", [0.5, 1.0, 3.0])
-def test_cached_propagators_follow_the_closed_form_whirl_and_resonance(speed_ratio):
-    # the FMU's path: E, P1..P3, Wc, Ws from one 6n x 6n exponential per step size
+def _whirl_or_resonance(speed_ratio):
+    """Spin speed, affine model and closed-form motion of a Jeffcott rotor: the steady
+    whirl at 5 % damping, or, at ``speed_ratio`` 1, the undamped resonance from rest."""
     w = speed_ratio * WN
     c = 0.0 if speed_ratio == 1.0 else 2.0 * 0.05 * M * WN  # undamped at resonance
     model = affine_model(JEFFCOTT, np.array([M, c, K, E, w, 0.0]), 4, 2, w)
-    cache = PropagatorCache(model, w)
     if c:
         amp, phase = free_whirl(M, c, K, E, w)
-        exact = lambda t: _whirl(t, amp, phase, w)  # noqa: E731
-    else:
+        return w, model, lambda t: _whirl(t, amp, phase, w)
 
-        def exact(t):  # x'' + wn^2 x = e wn^2 cos(wn t) from rest at the origin
-            s, co = math.sin(w * t), math.cos(w * t)
-            return 0.5 * E * np.array([w * t * s, -w * t * co + s, w * (s + w * t * co),
-                                       w * (-co + w * t * s) + w * co])  # fmt: skip
+    def exact(t):  # x'' + wn^2 x = e wn^2 cos(wn t) from rest at the origin
+        s, co = math.sin(w * t), math.cos(w * t)
+        return 0.5 * E * np.array([w * t * s, -w * t * co + s, w * (s + w * t * co),
+                                   w * (-co + w * t * s) + w * co])  # fmt: skip
 
+    return w, model, exact
+
+
+@pytest.mark.parametrize("speed_ratio", [0.5, 1.0, 3.0])
+def test_cached_propagators_follow_the_closed_form_whirl_and_resonance(speed_ratio):
+    # the FMU's path: E, P1..P3, Wc, Ws from one 6n x 6n exponential per step size
+    w, model, exact = _whirl_or_resonance(speed_ratio)
+    cache = PropagatorCache(model, w)
     t, y = 0.0371, exact(0.0371)
     for h in (3e-4, 3e-4, 3e-4, 0.02, 0.02, 3e-4):
         y = cache.step(t, h, y, np.zeros((2, 3)))
@@ -171,21 +177,9 @@ def test_bad_unit_integrator_setting_is_named():
 def test_modal_steps_follow_the_closed_form_whirl_and_resonance(speed_ratio):
     # an FMU's step of a new length: modal coordinates, steps short and long (|lambda h|
     # from 3e-4, the series, to 95, the closed forms), the undamped resonance included
-    w = speed_ratio * WN
-    c = 0.0 if speed_ratio == 1.0 else 2.0 * 0.05 * M * WN
-    model = affine_model(JEFFCOTT, np.array([M, c, K, E, w, 0.0]), 4, 2, w)
+    w, model, exact = _whirl_or_resonance(speed_ratio)
     modal = ModalPropagator.build(model, w)
     assert modal is not None and len(modal.lam) == 2  # one mode per conjugate pair
-    if c:
-        amp, phase = free_whirl(M, c, K, E, w)
-        exact = lambda t: _whirl(t, amp, phase, w)  # noqa: E731
-    else:
-
-        def exact(t):  # x'' + wn^2 x = e wn^2 cos(wn t) from rest at the origin
-            s, co = math.sin(w * t), math.cos(w * t)
-            return 0.5 * E * np.array([w * t * s, -w * t * co + s, w * (s + w * t * co),
-                                       w * (-co + w * t * s) + w * co])  # fmt: skip
-
     t, y = 0.0371, exact(0.0371)
     for h in (1e-6, 3e-4, 2.9e-4, 0.02, 0.3, 1e-5):
         y = modal.step(t, h, y, np.zeros((2, 3)))
