@@ -105,6 +105,33 @@ def test_exact_step_agrees_with_dop853_under_polynomial_inputs_and_gravity():
         assert np.max(np.abs(y_exact - y_rk) / scales) < 1e-12
 
 
+@pytest.mark.parametrize("damping", [100.0, 2.0 * math.sqrt(K * M)])
+def test_rotor_unit_in_plain_numpy_takes_each_path_and_agrees_with_the_compiled_step(
+    monkeypatch, damping
+):
+    # an FMU's unit (numba off): steps of a new length in modal coordinates (or, at
+    # critical damping, the exponential), repeated lengths from the cached propagators;
+    # all of them the compiled exact step's to round-off
+    from rubcosim.components import rotor_unit
+
+    compiled = JeffcottRotorUnit.example(eccentricity=E, damping=damping, mass=M, stiffness=K)
+    plain = JeffcottRotorUnit.example(eccentricity=E, damping=damping, mass=M, stiffness=K)
+    t = 0.0
+    for k, h in enumerate((3e-4, 2e-4, 2e-4, 2e-4, 5e-3, 1e-5, 1e-5)):
+        for unit in (compiled, plain):
+            unit.set_input_polynomial("fx", 5.0 + k, 300.0, -2e4)
+            unit.set_input_polynomial("fy", -3.0, 100.0 * k, 0.0)
+        compiled.do_step(t, h)
+        monkeypatch.setattr(rotor_unit, "USE_NUMBA", False)
+        plain.do_step(t, h)
+        monkeypatch.setattr(rotor_unit, "USE_NUMBA", True)
+        t += h
+        a, b = compiled.state["y"], plain.state["y"]
+        assert np.max(np.abs(a - b) / SCALES4) < 1e-11
+    assert (plain._modal() is None) == (damping > 1000.0)  # critical: no eigenvector basis
+    assert plain._propagators().computed == 2  # 2e-4 and 1e-5, each once
+
+
 def test_rotor_unit_steps_exactly_by_default_and_dop853_on_request():
     exact = JeffcottRotorUnit.example(eccentricity=E, damping=100.0)
     rk = JeffcottRotorUnit.example(eccentricity=E, damping=100.0, integrator="dop853")
