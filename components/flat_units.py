@@ -4,12 +4,8 @@ The compiled master (:mod:`rubcosim.orchestrator.flat_master`) keeps every unit 
 one row of a float array instead of a :class:`.unit.Unit` object, so that a
 whole macro step (and its rollback) runs without Python.  A row holds:
 
-* ``Y`` .. ``Y + 7``: the continuous state (rotor disc and journal, casing);
-* ``H``: the step size the unit's DOP853 integrator tries next;
-* ``IV``: the rotor's ``resets_applied`` counter;
-* ``T``: the unit's time (s);
-* ``U + 3 i`` .. ``U + 3 i + 2``: input ``i``'s value, first and second time
-  derivative at the step's start (in the order of the unit class's ``inputs``).
+the state, the step size to try next, the time and the inputs' values and
+derivatives (:mod:`.flat_rows` has the layout).
 
 :func:`outputs` is the one definition of these units' outputs: the unit classes
 take theirs from it too (:class:`RowOutputs`, on the row of the unit object), so the
@@ -17,9 +13,9 @@ Python master, the FMUs and the compiled master evaluate the same kernel.
 :func:`do_step` follows :meth:`.unit.Unit.do_step` and the classes' ``_advance``
 operation for operation, from the same physics kernels (:mod:`.rotor`,
 :mod:`.linear_propagation`, :mod:`.stepping`); ``tests/test_flat_master.py`` holds
-the two masters to 1e-12 (they are bit-identical).  A unit type
-without a row form here (the controller with its delay history, the hybrid
-impact oscillators, FMUs) runs on the Python master.
+the two masters to 1e-12 (they are bit-identical).  The hybrid unit types (the
+impact oscillators) step on rows through :mod:`.flat_hybrid`.  A unit type without a
+row form (the controller with its delay history, FMUs) runs on the Python master.
 """
 
 from __future__ import annotations
@@ -31,6 +27,24 @@ from typing import Any
 import numpy as np
 
 from .bearing import film_scale, linear_bearing_force, oilfilm_force
+from .flat_hybrid import hybrid_flat_type, hybrid_params, hybrid_step
+from .flat_rows import (  # noqa: F401 - the row layout and statuses, re-exported
+    HY_IMPACTS,
+    HY_MODE,
+    IV,
+    MAX_INPUTS,
+    MAX_OUTPUTS,
+    MAX_PARAMS,
+    ROW,
+    STEP_BAD_INPUT,
+    STEP_FAILED,
+    STEP_NOT_FINITE,
+    STEP_OK,
+    H,
+    T,
+    U,
+    Y,
+)
 from .jit import njit
 from .kernels import all_finite
 from .linear_propagation import exact_step
@@ -54,21 +68,9 @@ from .stator import (
 from .stepping import OK, advance
 from .unit_odes import CASING, CASING_P, JEFFCOTT, JEFFCOTT_P, TWO_MASS, TWO_MASS_P
 
-# row layout
-Y, H, IV, T, U = 0, 8, 9, 10, 11
-MAX_INPUTS = 7
-ROW = U + 3 * MAX_INPUTS
-MAX_OUTPUTS = 11
-MAX_PARAMS = 11
+# flat unit kinds (K_HYBRID: every hybrid unit type, :mod:`.flat_hybrid`)
+K_JEFFCOTT, K_TWO_MASS, K_RIGID, K_ELASTIC, K_CASING, K_OILFILM, K_LINEAR, K_HYBRID = range(8)
 
-# flat unit kinds
-K_JEFFCOTT, K_TWO_MASS, K_RIGID, K_ELASTIC, K_CASING, K_OILFILM, K_LINEAR = range(7)
-
-# what a step or an output evaluation can report
-STEP_OK = 0
-STEP_BAD_INPUT = 1  # an input is not finite
-STEP_FAILED = 2  # the integrator failed (step size below round-off, state not finite)
-STEP_NOT_FINITE = 3  # the state is not finite after the step
 OUT_NO_FILM = 4  # a journal outside the oil film: no bearing force
 OUT_BAD_MODE = 5  # a contact mode that is not 0, 1, 2 or 3
 OUT_NO_MASS = 6  # sustained contact without a disc mass
@@ -114,10 +116,19 @@ FLAT_TYPES: dict[tuple[str, str], tuple[int, int, tuple[str, ...], tuple[str, ..
 }
 
 
+def flat_type(role: str, type_name: str) -> tuple[int, int, tuple, tuple] | None:
+    """The :data:`FLAT_TYPES` entry of a unit type, the hybrid types' included
+    (:func:`.flat_hybrid.hybrid_flat_type`); None when it has no row form."""
+    return FLAT_TYPES.get((role, type_name)) or hybrid_flat_type(role, type_name)
+
+
 def flat_params(role: str, type_name: str, params: Mapping[str, Any]) -> np.ndarray:
     """The parameter row of a unit (:data:`FLAT_TYPES` order, zero-padded): the unit's
     parameters plus the quantities its class derives from them when it steps (the
-    penalty damping, the film's force scale)."""
+    penalty damping, the film's force scale); a hybrid unit's kernels' array
+    (:func:`.flat_hybrid.hybrid_params`)."""
+    if (role, type_name) not in FLAT_TYPES:
+        return hybrid_params(role, type_name, params)
     names = FLAT_TYPES[(role, type_name)][2]
     q = dict(params)
     if type_name in ("elastic", "casing"):
@@ -151,6 +162,8 @@ def do_step(kind, ode_kind, exact, n_y, n_in, ode_idx, p, tol, model, st, t, h):
     for i in range(n_in):
         if not math.isfinite(st[U + 3 * i]):
             return STEP_BAD_INPUT
+    if kind == K_HYBRID:
+        return hybrid_step(ode_kind, n_y, ode_idx.shape[0], ode_idx, p, tol, st, t, h)
     if kind != K_JEFFCOTT and kind != K_TWO_MASS and kind != K_CASING:
         st[T] = t + h  # no dynamics of its own
         return STEP_OK
@@ -285,6 +298,9 @@ def unit_row(unit: Any) -> np.ndarray:
         row[Y : Y + len(y)] = y
     row[H] = unit.state.get("h", 0.0)
     row[IV] = unit.state.get("resets_applied", 0)
+    if "impacts" in unit.state:  # a hybrid unit (flat_hybrid)
+        row[HY_MODE] = unit.state["mode"]
+        row[HY_IMPACTS] = unit.state["impacts"]
     row[T] = unit.time
     for i, s in enumerate(unit.inputs):
         d1, d2 = unit.du.get(s.name, (0.0, 0.0))
@@ -303,7 +319,7 @@ class RowOutputs:
             p = flat_params(self.role, self.type_name, self.params)
             self._row_params = p
         out = np.zeros(MAX_OUTPUTS)
-        kind = FLAT_TYPES[(self.role, self.type_name)][0]
+        kind = flat_type(self.role, self.type_name)[0]
         row = unit_row(self)
         status = outputs(kind, p, row, out)
         if status != STEP_OK:

@@ -109,9 +109,13 @@ class HybridUnit(Unit):
         )
         st["impacts"] += impacts
 
+    # outputs that are a function of the mode alone: name -> value in mode 0, 1, ...
+    mode_outputs: ClassVar[Mapping[str, tuple[int, ...]]] = {}
+
     def _derived(self, values: Mapping[str, float]) -> dict[str, float]:
-        """Outputs a subclass derives from the kernels' (and ``mode``); none here."""
-        return {}
+        """The :attr:`mode_outputs` in the current mode."""
+        mode = self.state["mode"]
+        return {name: table[mode] for name, table in self.mode_outputs.items()}
 
     def _outputs(self) -> dict[str, float]:
         st = self.state

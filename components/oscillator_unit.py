@@ -174,6 +174,8 @@ class ImpactOscillatorUnit(HybridUnit):
     summary = "single-DOF (Duffing) impact oscillator with rigid or elastic stops"
     params_spec = (*OSCILLATOR_PARAMS, *INTEGRATOR_PARAMS, CHATTER_TOL)
     kernels = KERNELS
+    # "stuck" by mode: FREE 0, STUCK_UPPER +1, STUCK_LOWER -1
+    mode_outputs = {"stuck": tuple({STUCK_UPPER: 1, STUCK_LOWER: -1}.get(m, 0) for m in range(3))}
     inputs = (real_signal("force", "m/s^2", "external force per unit mass"),)
     outputs = (
         real_signal("x", "m", "displacement"),
@@ -186,10 +188,6 @@ class ImpactOscillatorUnit(HybridUnit):
 
     def _check(self, params: Mapping[str, Any]) -> None:
         check_oscillator(dict(params), self.name)
-
-    def _derived(self, values: Mapping[str, float]) -> dict[str, float]:
-        mode = self.state["mode"]
-        return {"stuck": 1 if mode == STUCK_UPPER else (-1 if mode == STUCK_LOWER else 0)}
 
 
 IMPACT_OSCILLATOR = UnitType(

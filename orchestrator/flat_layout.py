@@ -27,7 +27,7 @@ FlatGraph = namedtuple(
         "kind", "ode", "exact", "ny", "nin", "nout", "ode_idx", "node", "p", "tol", "feed",
         "in_order", "order", "eval_order", "c_input", "src0", "src_unit", "src_out", "c_gs",
         "conn0", "conns", "nominal", "bound", "pr_kind", "pr_stator", "pr_rotor", "pr_f",
-        "rec_unit", "rec_out", "out_times", "model", "iset", "fset",
+        "rec_unit", "rec_out", "out_times", "model", "iset", "fset", "omap", "mval",
     ],
 )  # fmt: skip
 

@@ -1,8 +1,9 @@
 """The compiled master: the Python master's algorithm over flat arrays, in numba.
 
 :func:`flat_unsupported` says whether a master's units and protocols all have a
-compiled form (the rotors, the stators, the bearings, with the rigid or penalty
-contact protocols; not the controller, the hybrid oscillators or FMUs);
+compiled form (the rotors, the stators, the bearings, the hybrid impact
+oscillators, with the rigid or penalty contact protocols; not the controller or
+FMUs);
 :func:`run_flat` then runs it: the graph and the units' current states are
 packed into arrays (:mod:`.flat_layout`), the compiled loop (:mod:`.flat_loop`)
 runs in chunks (a progress bar between them) and the recorded rows, events and
@@ -22,6 +23,7 @@ from typing import Any
 import numpy as np
 
 from rubcosim.components import flat_units as fu
+from rubcosim.components.flat_hybrid import MAX_MODES, output_map
 from rubcosim.components.unit import Unit
 from rubcosim.progress import watch
 
@@ -39,7 +41,7 @@ def flat_unsupported(master: Any) -> str | None:
     for name, unit in master.units.items():
         if not isinstance(unit, Unit):
             return f"unit {name} is an FMU"
-        if (unit.role, unit.type_name) not in fu.FLAT_TYPES:
+        if fu.flat_type(unit.role, unit.type_name) is None:
             return f"unit {name} ({unit.type_name}) has no compiled form"
     for proto in master.protocols:
         if not isinstance(proto, RigidContact | ElasticContact):
@@ -65,8 +67,12 @@ def _graph(master: Any, t_end: float, times: np.ndarray, record: list[tuple[str,
     tol = np.zeros((n_units, 2))
     model = None
     exact = np.zeros(n_units, np.bool_)
+    omap = np.zeros((n_units, fu.MAX_OUTPUTS), np.int64)  # hybrid units' output sources
+    mval = np.zeros((n_units, fu.MAX_OUTPUTS, MAX_MODES))
     for k, u in enumerate(units):
-        kind[k], ode[k], _, ode_inputs = fu.FLAT_TYPES[(u.role, u.type_name)]
+        kind[k], ode[k], _, ode_inputs = fu.flat_type(u.role, u.type_name)
+        if kind[k] == fu.K_HYBRID:
+            omap[k], mval[k] = output_map(u)
         p[k] = fu.flat_params(u.role, u.type_name, u.params)
         tol[k] = u.params.get("rtol", 1e-10), u.params.get("atol", 1e-14)
         node[k] = len(ode_inputs)
@@ -123,6 +129,7 @@ def _graph(master: Any, t_end: float, times: np.ndarray, record: list[tuple[str,
                        events[st.events], st.max_events_per_period, p_order + 1], np.int64),
         fset=np.array([st.rtol, st.iteration_tol, st.min_step, st.max_step, master.t_tol,
                        master.period, t_end]),
+        omap=omap, mval=mval,
     )  # fmt: skip
 
 

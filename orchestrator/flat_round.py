@@ -8,7 +8,8 @@ state).  Every function returns a status (0: fine); a nonzero one is recorded in
 
 from __future__ import annotations
 
-from rubcosim.components.flat_units import STEP_OK, U, do_step, outputs
+from rubcosim.components.flat_hybrid import hybrid_outputs
+from rubcosim.components.flat_units import K_HYBRID, STEP_OK, U, do_step, outputs
 from rubcosim.components.jit import njit
 from rubcosim.components.kernels import polynomial_at
 
@@ -40,7 +41,11 @@ def fail(S, code, unit, detail):
 @njit(inline="always")
 def unit_outputs(G, S, k):
     """Refresh the master's copy of unit ``k``'s outputs (``get_outputs``)."""
-    status = outputs(G.kind[k], G.p[k], S.ust[k], S.out[k])
+    if G.kind[k] == K_HYBRID:
+        status = hybrid_outputs(G.ny[k], G.node[k], G.nout[k], G.ode_idx[k, : G.node[k]],
+                                G.omap[k], G.mval[k], G.p[k], S.ust[k], S.out[k])  # fmt: skip
+    else:
+        status = outputs(G.kind[k], G.p[k], S.ust[k], S.out[k])
     if status != STEP_OK:
         return fail(S, FAIL_OUTPUT, k, status)
     return 0

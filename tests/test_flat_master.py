@@ -36,6 +36,8 @@ CASES = [
     ("jeffcott_rigid_stator", 0.05, {"adaptive": False, "events": "step"}),
     ("jeffcott_elastic_stator", 0.03, {"events": "off"}),
     ("two_mass_oilfilm_rub", 0.03, {"unit_integrator": "dop853"}),
+    ("impact_duffing", 10.0, {}),
+    ("two_dof_impact_oscillator", 40.0, {}),
 ]
 
 
@@ -88,3 +90,31 @@ def test_the_master_setting_is_validated_and_compiled_names_what_it_cannot_run()
     # auto falls back to the Python master for the controller, and says so
     fallback = run_cosim(sc, replace(sc.cosim, master="auto"))
     assert fallback.ok and fallback.master == "python"
+
+
+@pytest.mark.parametrize(
+    "name, overrides, unit_class",
+    [
+        # a linear oscillator pushed onto its stop: chattering, then stuck (mode 1)
+        ("impact_oscillator_linear", ["oscillator.barrier=-0.5",
+         "oscillator.forcing_amplitude=0.2", "oscillator.restitution=0.5"], "single"),
+        ("two_dof_impact_oscillator", [], "two_dof"),
+    ],
+)  # fmt: skip
+def test_compiled_master_gives_every_output_of_a_hybrid_unit(name, overrides, unit_class):
+    # impacts counted, the mode, and the outputs that follow the mode ("stuck")
+    from rubcosim.components.oscillator_unit import ImpactOscillatorUnit
+    from rubcosim.components.two_dof_oscillator import TwoDofImpactOscillatorUnit
+
+    cls = ImpactOscillatorUnit if unit_class == "single" else TwoDofImpactOscillatorUnit
+    sc = load_scenario(SCENARIOS / f"{name}.toml", ["sim.t_end=20.0", *overrides])
+    record = [f"oscillator.{s.name}" for s in cls.outputs]
+    python = run_cosim(sc, replace(sc.cosim, master="python"), record=record)
+    compiled = run_cosim(sc, replace(sc.cosim, master="compiled"), record=record)
+    assert (python.master, compiled.master) == ("python", "compiled")
+    assert python.ok and compiled.ok and compiled.counters == python.counters
+    np.testing.assert_array_equal(compiled.values, python.values)
+    values = dict(zip(record, python.values.T, strict=True))
+    assert values["oscillator.impacts"][-1] > 5 and values["oscillator.mode"].max() == 1
+    if "oscillator.stuck" in values:
+        assert values["oscillator.stuck"].max() == 1
