@@ -27,7 +27,7 @@ import numpy as np
 from stamp import stamp, stamp_line
 
 import rubcosim as rc
-from rubcosim.analysis.cellmap import CELL_MAP_RTOL, DEFAULT_CHUNK, sample_cells
+from rubcosim.analysis.cellmap import CELL_MAP_RTOL, all_samples
 from rubcosim.analysis.maps import StroboscopicMap
 
 REPO = Path(__file__).resolve().parents[1]
@@ -98,11 +98,7 @@ def main(argv: list[str] | None = None) -> int:
     t1 = time.perf_counter()
     fates = b.fates.ravel()
     # the samples as pursuit draws them: task by task (each task's own random stream)
-    n_cells = b.grid.n_cells
-    points = np.concatenate([
-        sample_cells(b.grid, a, min(a + DEFAULT_CHUNK, n_cells), b.samples, b.seed)
-        for a in range(0, n_cells, DEFAULT_CHUNK)
-    ])  # fmt: skip
+    points = all_samples(b.grid, b.samples, b.seed)
     rng = np.random.default_rng(args.seed)
     pick = rng.choice(np.flatnonzero(fates < b.n_attractors), args.draw, replace=False)
     chunks = np.array_split(pick, args.workers)

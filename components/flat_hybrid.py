@@ -5,8 +5,9 @@ its impact count at ``HY_IMPACTS``; its parameter row is its kernels' array
 (:meth:`.hybrid.HybridKernels.parameters`) with the type's index and ``input_base``
 at the end.  :func:`hybrid_step` is :meth:`.hybrid.HybridUnit._advance` on the row
 (the same :func:`.stepping.advance` of the same kernels, the inputs written into
-the kernels' array the same way), :func:`hybrid_outputs` its ``_outputs``: the
-kernels' outputs, the impact count, the mode and the type's mode outputs
+the kernels' array the same way).  :func:`hybrid_outputs` gives the outputs, for
+both masters (``HybridUnit._outputs`` calls it on the unit's row): the kernels'
+outputs, the impact count, the mode and the type's mode outputs
 (:attr:`.hybrid.HybridUnit.mode_outputs`), in the unit class's order
 (:func:`output_map`).  ``tests/test_flat_master.py`` holds the two masters to 1e-12.
 """
@@ -38,7 +39,7 @@ from .flat_rows import (
 from .hybrid_dispatch import hybrid_types
 from .jit import njit
 from .kernels import all_finite
-from .stepping import HYBRID, NO_INPUTS, OK, advance
+from .stepping import HYBRID, OK, advance
 
 # where output j of a hybrid unit comes from (>= 0: the kernels' output of that index)
 OUT_IMPACTS, OUT_MODE, OUT_BY_MODE = -1, -2, -3
@@ -98,6 +99,16 @@ def output_map(unit: Any) -> tuple[np.ndarray, np.ndarray]:
     return code, by_mode
 
 
+def row_output_args(unit: Any) -> tuple:
+    """``(n_y, idx, code, by_mode, p)`` of hybrid ``unit`` for :func:`hybrid_outputs` on
+    its row (:func:`.flat_units.unit_row`): what the compiled master holds per unit."""
+    ins = [s.name for s in unit.inputs]
+    idx = np.array([ins.index(name) for name in unit.kernels.inputs], np.int64)
+    code, by_mode = output_map(unit)
+    p = hybrid_params(unit.role, unit.type_name, unit.params)
+    return len(unit.state["y"]), idx, code, by_mode, p
+
+
 @njit
 def _kernel_array(p, st, n_in, idx, t):  # pragma: no cover - compiled
     """The kernels' parameter array with the inputs of row ``st`` written from its
@@ -121,8 +132,11 @@ def hybrid_step(step_kind, n_y, n_in, idx, p, tol, st, t, h):  # pragma: no cove
     q = _kernel_array(p, st, n_in, idx, t)
     y = st[Y : Y + n_y].copy()
     mode = np.int64(st[HY_MODE])
+    # a fresh array, not stepping.NO_INPUTS: a global is a read-only constant to
+    # numba, a second signature of advance and seconds more of compilation
+    no_inputs = np.zeros((0, 3))
     h_next, mode, impacts, status = advance(
-        step_kind, t, t + h, y, mode, st[H], q, NO_INPUTS, tol[0], tol[1]
+        step_kind, t, t + h, y, mode, st[H], q, no_inputs, tol[0], tol[1]
     )
     if status != OK:
         return STEP_FAILED

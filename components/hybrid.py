@@ -33,6 +33,9 @@ from typing import Any, ClassVar
 
 import numpy as np
 
+from .flat_hybrid import hybrid_outputs, row_output_args
+from .flat_rows import MAX_OUTPUTS
+from .flat_units import unit_row
 from .hybrid_dispatch import hybrid_types
 from .jit import njit
 from .kernels import polynomial_at
@@ -87,11 +90,13 @@ class HybridUnit(Unit):
     kernels: ClassVar[HybridKernels]
     feedthrough = False
     _index = -1  # the type's index among the hybrid types (of the stepper's dispatch)
+    _row_outputs: tuple | None = None
 
     def _initial_state(self) -> dict[str, Any]:
         y0, mode0 = self.kernels.initial(self.params)
         self._index = [t.hybrid for t in hybrid_types()].index(self.kernels)
         self._p = self.kernels.parameters(self.params)
+        self._row_outputs = None  # what _outputs passes the row kernel, from the parameters
         return {"y": np.array(y0, dtype=float), "h": 0.0, "mode": int(mode0), "impacts": 0}
 
     def _set_input_slots(self, t: float) -> None:
@@ -112,19 +117,16 @@ class HybridUnit(Unit):
     # outputs that are a function of the mode alone: name -> value in mode 0, 1, ...
     mode_outputs: ClassVar[Mapping[str, tuple[int, ...]]] = {}
 
-    def _derived(self, values: Mapping[str, float]) -> dict[str, float]:
-        """The :attr:`mode_outputs` in the current mode."""
-        mode = self.state["mode"]
-        return {name: table[mode] for name, table in self.mode_outputs.items()}
-
     def _outputs(self) -> dict[str, float]:
-        st = self.state
-        self._set_input_slots(self.time)  # the outputs at the current time see its inputs
-        out = np.empty(len(self.kernels.outputs))
-        self.kernels.output(self.time, st["y"], st["mode"], self._p, out)
-        values = dict(zip(self.kernels.outputs, (float(v) for v in out), strict=True))
-        values.update(impacts=st["impacts"], mode=st["mode"], **self._derived(values))
-        for s in self.outputs:
-            if s.kind == "integer":
-                values[s.name] = int(values[s.name])
-        return values
+        # the compiled master's kernel on this unit's row (flat_hybrid.hybrid_outputs):
+        # which output comes from where is decided there, once, for both masters
+        if self._row_outputs is None:
+            self._row_outputs = row_output_args(self)
+        out = np.zeros(MAX_OUTPUTS)
+        n_y, idx, code, by_mode, p = self._row_outputs
+        n_out = len(self.outputs)
+        hybrid_outputs(n_y, idx.size, n_out, idx, code, by_mode, p, unit_row(self), out)
+        return {
+            s.name: (int(v) if s.kind == "integer" else float(v))
+            for s, v in zip(self.outputs, out[:n_out], strict=True)
+        }

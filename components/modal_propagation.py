@@ -72,7 +72,6 @@ class ModalPropagator:
             self.which.append(same[0] if same else len(self.distinct) - 1)
         self.V = V
         n_in = Bu.shape[1]
-        self.n_in = n_in
         # the six modal drivers as one matrix on (y, u0, u1, u2, 1): rows of V^-1 (y),
         # V^-1 (Bu u0 + a), V^-1 Bu u1, V^-1 Bu u2, V^-1 (b - i c) / 2, V^-1 (b + i c) / 2
         nk, n = Vinv.shape

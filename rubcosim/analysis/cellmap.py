@@ -147,6 +147,15 @@ def sample_cells(grid: Grid, first: int, last: int, samples: int, seed: int) -> 
     return lo + u * np.array([grid.dx, grid.dv])
 
 
+def all_samples(grid: Grid, samples: int, seed: int, chunk: int = DEFAULT_CHUNK) -> np.ndarray:
+    """Every cell's sample points, in cell order, as the tasks of ``chunk`` cells draw
+    them (:func:`sample_cells` per task: each task has its own random stream)."""
+    starts = range(0, grid.n_cells, chunk)
+    return np.concatenate(
+        [sample_cells(grid, a, min(a + chunk, grid.n_cells), samples, seed) for a in starts]
+    )
+
+
 def map_cells(
     smap: StroboscopicMap, grid: Grid, first: int, last: int, samples: int, seed: int
 ) -> dict[str, np.ndarray]:

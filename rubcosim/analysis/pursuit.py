@@ -43,8 +43,8 @@ from .cellmap import (
     LABEL_ESCAPE,
     Basins,
     Grid,
+    all_samples,
     check_inputs,
-    sample_cells,
 )
 from .maps import StroboscopicMap
 from .parallel import map_in_chunks, parallel_images
@@ -70,10 +70,7 @@ def _map_all(
         smap, grid, samples, seed, map_samples, "samples", "pursuit",
         workers, scheduler, checkpoint_dir, chunk, progress,
     )  # fmt: skip
-    starts = range(0, grid.n_cells, chunk)
-    points = np.concatenate(
-        [sample_cells(grid, a, min(a + chunk, grid.n_cells), samples, seed) for a in starts]
-    )
+    points = all_samples(grid, samples, seed, chunk)
     images = np.concatenate([r["image"] for r in chunks])
     return points, images
 
