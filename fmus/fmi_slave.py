@@ -162,6 +162,36 @@ class UnitSlave(Fmi2Slave):
             )
             self._units[f"{s.name}_d{order}"] = _per_second(s.unit, order)
 
+    # --- real values ------------------------------------------------------------
+    # pythonfmu's get_real and set_real look up each variable and check its class per
+    # value; a master calls them several times per macro step.  The real variables'
+    # getters and setters by value reference, once; anything else (a wrong type, an
+    # output without a setter) goes to pythonfmu's methods for their error.
+    def _real_access(self) -> tuple[dict[int, Any], dict[int, Any]]:
+        access = self.__dict__.get("_reals")
+        if access is None:
+            reals = [(vr, v) for vr, v in self.vars.items() if isinstance(v, Real)]
+            access = (
+                {vr: v.getter for vr, v in reals if v.getter is not None},
+                {vr: v.setter for vr, v in reals if v.setter is not None},
+            )
+            self._reals = access
+        return access
+
+    def get_real(self, vrs: list[int]) -> list[float]:
+        getters = self._real_access()[0]
+        if not all(vr in getters for vr in vrs):
+            return super().get_real(vrs)
+        return [float(getters[vr]()) for vr in vrs]
+
+    def set_real(self, vrs: list[int], values: list[float]) -> None:
+        setters = self._real_access()[1]
+        if not all(vr in setters for vr in vrs):
+            super().set_real(vrs, values)
+            return
+        for vr, value in zip(vrs, values, strict=False):
+            setters[vr](value)
+
     def _outputs(self) -> dict[str, float]:
         if self._dirty:
             self._rebuild()

@@ -22,11 +22,13 @@ from fmpy.fmi2 import (
     fmi2CallbackFreeMemoryTYPE,
     fmi2CallbackFunctions,
     fmi2CallbackLoggerTYPE,
+    fmi2Integer,
     free,
 )
 
 from rubcosim.components.unit import StepError
 
+from .fmi_direct import StepCalls, ValueCall
 from .foreign import signal_names
 
 # A pythonfmu FMU imports `pythonfmu` from its own resources unless the package is already
@@ -71,7 +73,11 @@ class FmuUnit:
         # is neither recorded nor connected, see orchestrator.foreign)
         self.inputs, self.outputs = signal_names(self.md)
         self.messages: list[str] = []
-        self._groups: dict[tuple[str, ...], dict[str, tuple[list[str], list[int]]]] = {}
+        # per list of names read together: (names of one type, function giving their values)
+        self._groups: dict[tuple[str, ...], list[tuple[list[str], Any]]] = {}
+        # the per-step calls on all-real variables, straight to the C functions (fmi_direct)
+        self._real_calls: dict[tuple[str, tuple[str, ...]], ValueCall | None] = {}
+        self._steps: StepCalls | None = None
         self._lock = threading.Lock()
         self._dir = extract(str(self.path))
         self._callbacks = self._make_callbacks()
@@ -88,6 +94,7 @@ class FmuUnit:
                 "fmi2Instantiate", self._fmu.instantiate, callbacks=self._callbacks, loggingOn=True
             )
             self._instantiated = True
+            self._steps = StepCalls(self._fmu)
             self._call("set parameters", self.set_values, dict(params or {}))
             self._call("fmi2SetupExperiment", self._fmu.setupExperiment, startTime=start_time)
             self._call("fmi2EnterInitializationMode", self._fmu.enterInitializationMode)
@@ -104,9 +111,28 @@ class FmuUnit:
         except KeyError:
             raise FmuError(f"{self.name}.{name} is not a variable of {self.path.name}") from None
 
+    def _real_call(
+        self, function: str, names: tuple[str, ...], orders: tuple[int, ...] = ()
+    ) -> ValueCall | None:
+        """The direct call of ``function`` on ``names`` (each repeated per order when
+        ``orders`` are given), made once; None unless they are all real variables."""
+        key = (function, names)
+        if key not in self._real_calls:
+            found = [self._variable(name) for name in names]
+            call = None
+            if all(v.type == "Real" for v in found):
+                refs = [v.valueReference for v in found for _ in (orders or (0,))]
+                call = ValueCall(self._fmu, function, refs, orders * len(names))
+            self._real_calls[key] = call
+        return self._real_calls[key]
+
     def set_values(self, values: Mapping[str, Any]) -> None:
         """Set ``values`` by name: one FMI call per type (the order within a type is the
         mapping's)."""
+        call = self._real_call("fmi2SetReal", tuple(values)) if self._instantiated else None
+        if call is not None:
+            call.set([float(v) for v in values.values()])
+            return
         groups: dict[str, tuple[list[int], list[Any]]] = {}
         for name, value in values.items():
             var = self._variable(name)
@@ -128,24 +154,29 @@ class FmuUnit:
         """The values of ``names``: one FMI call per type, value references resolved once."""
         groups = self._groups.get(tuple(names))
         if groups is None:
-            groups = {}
+            by_kind: dict[str, tuple[list[str], list[int]]] = {}
             for name in names:
                 var = self._variable(name)
                 kind = "Integer" if var.type == "Enumeration" else var.type
-                groups.setdefault(kind, ([], []))
-                groups[kind][0].append(name)
-                groups[kind][1].append(var.valueReference)
+                by_kind.setdefault(kind, ([], []))
+                by_kind[kind][0].append(name)
+                by_kind[kind][1].append(var.valueReference)
+            groups = [(group, self._getter(kind, refs)) for kind, (group, refs) in by_kind.items()]
             self._groups[tuple(names)] = groups
         out: dict[str, Any] = {}
-        getters = {
-            "Real": self._fmu.getReal,
-            "Integer": self._fmu.getInteger,
-            "Boolean": self._fmu.getBoolean,
-            "String": self._fmu.getString,
-        }
-        for kind, (group, refs) in groups.items():
-            out.update(zip(group, getters[kind](refs), strict=True))
+        for group, get in groups:
+            out.update(zip(group, get(), strict=True))
         return out
+
+    def _getter(self, kind: str, refs: list[int]) -> Any:
+        """A function giving the values of ``refs`` of one type: reals and integers
+        straight from the C functions (fmi_direct), the rest through fmpy."""
+        if kind == "Real":
+            return ValueCall(self._fmu, "fmi2GetReal", refs).get
+        if kind == "Integer":
+            return ValueCall(self._fmu, "fmi2GetInteger", refs, ctype=fmi2Integer).get
+        getter = self._fmu.getBoolean if kind == "Boolean" else self._fmu.getString
+        return lambda: getter(refs)
 
     def set_input(self, name: str, value: float) -> None:
         self._call(f"set {name}", self.set_values, {name: value})
@@ -174,8 +205,7 @@ class FmuUnit:
     def set_input_polynomials(self, rows: Mapping[str, tuple[float, float, float]]) -> None:
         """:meth:`set_input_polynomial` for several inputs ``{name: (value, d1, d2)}`` in
         one fmi2SetReal and one fmi2SetRealInputDerivatives."""
-        refs: list[int] = []
-        orders: list[int] = []
+        real: list[str] = []
         derivs: list[float] = []
         for name, (_, d1, d2) in rows.items():
             var = self._variable(name)
@@ -186,18 +216,12 @@ class FmuUnit:
                         f"{var.type} input; it has no derivatives"
                     )
                 continue
-            refs += [var.valueReference, var.valueReference]
-            orders += [1, 2]
+            real.append(name)
             derivs += [d1, d2]
         self._call("set inputs", self.set_values, {k: r[0] for k, r in rows.items()})
-        if refs:
-            self._call(
-                f"fmi2SetRealInputDerivatives {', '.join(rows)}",
-                self._fmu.setRealInputDerivatives,
-                refs,
-                orders,
-                derivs,
-            )
+        if real:
+            call = self._real_call("fmi2SetRealInputDerivatives", tuple(real), (1, 2))
+            self._call(f"fmi2SetRealInputDerivatives {', '.join(real)}", call.set, derivs)
 
     def set_inputs(self, values: Mapping[str, float]) -> None:
         self._call("set inputs", self.set_values, values)
@@ -214,7 +238,7 @@ class FmuUnit:
         """fmi2DoStep; a discarded or failed step raises StepError with the FMU's messages."""
         self.messages.clear()
         try:
-            self._fmu.doStep(currentCommunicationPoint=t, communicationStepSize=h)
+            self._steps.do_step(t, h)
         except Exception as exc:
             if getattr(exc, "status", None) == FMI2_FATAL:
                 self._fatal = True
@@ -224,13 +248,13 @@ class FmuUnit:
 
     def get_state(self) -> Any:
         """An FMU state handle (free it with :meth:`free_state` when done)."""
-        return self._call("fmi2GetFMUstate", self._fmu.getFMUState)
+        return self._call("fmi2GetFMUstate", self._steps.get_state)
 
     def set_state(self, state: Any) -> None:
-        self._call("fmi2SetFMUstate", self._fmu.setFMUState, state)
+        self._call("fmi2SetFMUstate", self._steps.set_state, state)
 
     def free_state(self, state: Any) -> None:
-        self._call("fmi2FreeFMUstate", self._fmu.freeFMUState, state)
+        self._call("fmi2FreeFMUstate", self._steps.free_state, state)
 
     def serialize_state(self, state: Any) -> bytes:
         return bytes(self._call("fmi2SerializeFMUstate", self._fmu.serializeFMUState, state))

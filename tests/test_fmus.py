@@ -109,6 +109,24 @@ def test_input_derivatives_reach_the_unit_through_the_loader(built_fmus):
     assert x == pytest.approx(want, rel=1e-9)
 
 
+def test_derivatives_of_several_inputs_in_one_call_reach_each_input(built_fmus):
+    # the loader sets all the carriers of one fmi2SetRealInputDerivatives in one fmi2SetReal:
+    # each input must get its own derivatives (x from fx's polynomial, y from fy's)
+    m, t = 2.0, 0.5
+    params = dict(mass=m, damping=0.0, stiffness=1e-30, eccentricity=0.0, speed=0.0)
+    fx, fy = (3.0, 40.0, 100.0), (-1.0, 7.0, -60.0)
+    with FmuUnit(built_fmus["RubcosimJeffcottRotor"], params=params) as fmu:
+        fmu.set_input_polynomials({"fx": fx, "fy": fy})
+        fmu.do_step(0.0, t)
+        out = fmu.get_outputs()
+
+    def drift(a: float, b: float, c: float) -> float:
+        return a * t**2 / (2 * m) + b * t**3 / (6 * m) + c * t**4 / (24 * m)
+
+    assert out["x"] == pytest.approx(drift(*fx), rel=1e-9)
+    assert out["y"] == pytest.approx(drift(*fy), rel=1e-9)
+
+
 def test_builds_are_reproducible(tmp_path):
     a = build_fmus(tmp_path / "a", only=["RubcosimLinearBearing"])[0]
     b = build_fmus(tmp_path / "b", only=["RubcosimLinearBearing"])[0]

@@ -947,12 +947,23 @@ RCS_EXPORT fmi2Status fmi2SetRealInputDerivatives(fmi2Component c, const fmi2Val
                                                   const fmi2Real value[])
 {
     if (g_api.fmi2SetReal == NULL) return fmi2Error;
+    /* one fmi2SetReal for every carrier, in chunks of RCS_DER_BATCH: each call into the
+     * Python slave costs microseconds whatever the number of values it carries */
+    enum { RCS_DER_BATCH = 64 };
+    fmi2ValueReference carriers[RCS_DER_BATCH];
+    fmi2Real values[RCS_DER_BATCH];
+    size_t n = 0;
     for (size_t i = 0; i < nvr; i++) {
         size_t k = 0;
         while (k < g_n_der && !(g_der[k].input == vr[i] && g_der[k].order == order[i])) k++;
         if (k == g_n_der) return fmi2Error; /* not a real input, or an order above 2 */
-        fmi2Status status = g_api.fmi2SetReal(c, &g_der[k].carrier, 1, &value[i]);
-        if (status > fmi2Warning) return status;
+        carriers[n] = g_der[k].carrier;
+        values[n] = value[i];
+        if (++n == RCS_DER_BATCH || i + 1 == nvr) {
+            fmi2Status status = g_api.fmi2SetReal(c, carriers, n, values);
+            if (status > fmi2Warning) return status;
+            n = 0;
+        }
     }
     return fmi2OK;
 }
