@@ -302,9 +302,14 @@ def unit_row(unit: Any) -> np.ndarray:
         row[HY_MODE] = unit.state["mode"]
         row[HY_IMPACTS] = unit.state["impacts"]
     row[T] = unit.time
-    for i, s in enumerate(unit.inputs):
-        d1, d2 = unit.du.get(s.name, (0.0, 0.0))
-        row[U + 3 * i : U + 3 * i + 3] = unit.u[s.name], d1, d2
+    # value, d1, d2 per input in one list and one assignment: a slice assignment per input
+    # costs a microsecond, and the Python master and the FMUs build a row per output read
+    u, du, none = unit.u, unit.du, (0.0, 0.0)
+    values = []
+    for s in unit.inputs:
+        values.append(u[s.name])
+        values.extend(du.get(s.name, none))
+    row[U : U + len(values)] = values
     return row
 
 
