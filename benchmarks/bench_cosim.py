@@ -197,6 +197,8 @@ def bench_case(case: str, args: argparse.Namespace, out: dict[str, Any]) -> dict
                 point["runs"] = len(walls)
                 point["steps"] = counters.get("steps", 0)
                 point["events"] = counters.get("events", 0)
+                if "fmi_calls" in counters:
+                    point["fmi_calls"] = counters["fmi_calls"]
             except RuntimeError as exc:
                 point = {"value": value, "failed": str(exc)}
             points.append(point)
@@ -207,6 +209,26 @@ def bench_case(case: str, args: argparse.Namespace, out: dict[str, Any]) -> dict
         # with --merge, methods may come from different commits: each says its own
         out.setdefault("measured_at", {})[method.name] = {"git_commit": git_commit()}
     return out
+
+
+def cheapest_fmi_call(repeats: int = 5, calls: int = 2000) -> dict[str, float]:
+    """Cost (s) of the cheapest call a master makes on an FMU every step: fmi2GetReal of
+    one output of the rigid-stator FMU, through the backend's own direct path; median and
+    range over ``repeats`` loops of ``calls`` calls.  Times the FMI calls per step, it is
+    what the FMU backend costs per step before any work is done."""
+    from rubcosim.orchestrator.assembly import fmu_paths
+    from rubcosim.orchestrator.fmu_unit import FmuUnit
+
+    path = fmu_paths({"stator": "rigid"}, None)["stator"]
+    costs = []
+    with FmuUnit(path) as fmu:
+        fmu.get_values(["gap"])  # the call made once, outside the timing
+        for _ in range(repeats):
+            start = time.perf_counter()
+            for _ in range(calls):
+                fmu.get_values(["gap"])
+            costs.append((time.perf_counter() - start) / calls)
+    return {"median_s": statistics.median(costs), "min_s": min(costs), "max_s": max(costs)}
 
 
 def _describe(point: dict[str, Any]) -> str:
@@ -241,9 +263,12 @@ def table(results: dict[str, Any], target: float) -> str:
     return "\n".join(lines)
 
 
-def ratios(results: dict[str, Any], target: float) -> list[str]:
+def ratios(
+    results: dict[str, Any], target: float, call: dict[str, float] | None = None
+) -> list[str]:
     """The targets of the issue, per case: the compiled co-simulation against
-    ``accurate`` (<= 3x), the FMU backend against the compiled co-simulation (<= 5x)."""
+    ``accurate`` (<= 3x), the FMU backend against the compiled co-simulation (<= 5x),
+    with the FMU backend's floor from ``call`` (:func:`cheapest_fmi_call`)."""
     lines = []
     for case, res in results.items():
         cost = {n: cost_at(p, target) for n, p in res["methods"].items()}
@@ -259,6 +284,13 @@ def ratios(results: dict[str, Any], target: float) -> list[str]:
             parts.append(f"Python master / compiled = {py['wall_s'] / ada['wall_s']:.1f}x;")
         if ada and fmu:
             parts.append(f"FMU backend / compiled = {fmu['wall_s'] / ada['wall_s']:.1f}x;")
+            if fmu.get("fmi_calls") and call:
+                floor = fmu["fmi_calls"] * call["median_s"]
+                parts.append(
+                    f"{fmu['fmi_calls'] / fmu['steps']:.1f} FMI calls per macro step, whose "
+                    f"floor (calls x the cheapest call, {call['median_s'] * 1e6:.1f} us) "
+                    f"alone is {floor / ada['wall_s']:.0f}x the compiled run;"
+                )
         if ada and plain:
             parts.append(f"plain Jacobi / adaptive = {plain['wall_s'] / ada['wall_s']:.1f}x")
         elif ada:
@@ -310,6 +342,10 @@ def main(argv: list[str] | None = None) -> int:
     if args.merge and (args.out / "cosim_wp.json").exists():
         results = json.loads((args.out / "cosim_wp.json").read_text())["cases"]
     meta = stamp(target=args.target, repeats=args.repeats, quick=args.quick)
+    call = None
+    if not args.methods or "adaptive+events (fmu)" in args.methods:
+        call = cheapest_fmi_call()
+        meta["cheapest_fmi_call_s"] = call
     for case in args.cases:
         bench_case(case, args, results.setdefault(case, {}))
         # saved after every case: an interrupted run keeps what it measured (see --merge)
@@ -320,7 +356,7 @@ def main(argv: list[str] | None = None) -> int:
         + "\n\n"
         + table(results, args.target)
         + "\n\n"
-        + "\n".join(f"- {r}" for r in ratios(results, args.target))
+        + "\n".join(f"- {r}" for r in ratios(results, args.target, call))
     )
     (args.out / "cosim_wp.md").write_text(md + "\n")
     plot(results, args.target, args.out / "cosim_wp.png")

@@ -2,11 +2,20 @@
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
 from .settings import CosimSettings
+
+
+def fmi_counters(units: Iterable[Any]) -> dict[str, int]:
+    """``{"fmi_calls": n}``: the FMI calls made by the FMU units among ``units``
+    (:attr:`.fmu_unit.FmuUnit.fmi_calls`); empty when there are none."""
+    calls = sum(getattr(unit, "fmi_calls", 0) for unit in units)
+    return {"fmi_calls": calls} if calls else {}
 
 
 class CosimError(RuntimeError):

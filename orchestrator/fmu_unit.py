@@ -78,6 +78,8 @@ class FmuUnit:
         # the per-step calls on all-real variables, straight to the C functions (fmi_direct)
         self._real_calls: dict[tuple[str, tuple[str, ...]], ValueCall | None] = {}
         self._steps: StepCalls | None = None
+        # FMI calls made by the value, step and state methods (the parameters' included)
+        self.fmi_calls = 0
         self._lock = threading.Lock()
         self._dir = extract(str(self.path))
         self._callbacks = self._make_callbacks()
@@ -131,6 +133,7 @@ class FmuUnit:
         mapping's)."""
         call = self._real_call("fmi2SetReal", tuple(values)) if self._instantiated else None
         if call is not None:
+            self.fmi_calls += 1
             call.set([float(v) for v in values.values()])
             return
         groups: dict[str, tuple[list[int], list[Any]]] = {}
@@ -140,6 +143,7 @@ class FmuUnit:
             refs, vals = groups.setdefault(kind, ([], []))
             refs.append(var.valueReference)
             vals.append(value)
+        self.fmi_calls += len(groups)
         for kind, (refs, vals) in groups.items():
             if kind == "Real":
                 self._fmu.setReal(refs, [float(v) for v in vals])
@@ -164,6 +168,7 @@ class FmuUnit:
             groups = [(group, self._getter(kind, refs)) for kind, (group, refs) in by_kind.items()]
             self._groups[tuple(names)] = groups
         out: dict[str, Any] = {}
+        self.fmi_calls += len(groups)
         for group, get in groups:
             out.update(zip(group, get(), strict=True))
         return out
@@ -221,6 +226,7 @@ class FmuUnit:
         self._call("set inputs", self.set_values, {k: r[0] for k, r in rows.items()})
         if real:
             call = self._real_call("fmi2SetRealInputDerivatives", tuple(real), (1, 2))
+            self.fmi_calls += 1
             self._call(f"fmi2SetRealInputDerivatives {', '.join(real)}", call.set, derivs)
 
     def set_inputs(self, values: Mapping[str, float]) -> None:
@@ -237,6 +243,7 @@ class FmuUnit:
     def do_step(self, t: float, h: float) -> None:
         """fmi2DoStep; a discarded or failed step raises StepError with the FMU's messages."""
         self.messages.clear()
+        self.fmi_calls += 1
         try:
             self._steps.do_step(t, h)
         except Exception as exc:
@@ -248,12 +255,15 @@ class FmuUnit:
 
     def get_state(self) -> Any:
         """An FMU state handle (free it with :meth:`free_state` when done)."""
+        self.fmi_calls += 1
         return self._call("fmi2GetFMUstate", self._steps.get_state)
 
     def set_state(self, state: Any) -> None:
+        self.fmi_calls += 1
         self._call("fmi2SetFMUstate", self._steps.set_state, state)
 
     def free_state(self, state: Any) -> None:
+        self.fmi_calls += 1
         self._call("fmi2FreeFMUstate", self._steps.free_state, state)
 
     def serialize_state(self, state: Any) -> bytes:

@@ -43,7 +43,7 @@ from rubcosim.components.unit import StepError
 from rubcosim.components.wiring import Connection
 from rubcosim.progress import watch
 
-from .cosim_result import CosimError, CosimResult
+from .cosim_result import CosimError, CosimResult, fmi_counters
 from .coupling_norms import CouplingNorms
 from .event_steps import EventSteps
 from .extrapolation import evaluate, polynomial
@@ -265,7 +265,7 @@ class Master(CouplingNorms, EventSteps, KinkSteps, Rollback):
             event_t=np.array([e[0] for e in self.events]),
             event_kind=[e[1] for e in self.events],
             event_unit=[e[2] for e in self.events],
-            counters=dict(self.counters),
+            counters={**self.counters, **fmi_counters(self.units.values())},
             status=status,
             message=message,
             t_reached=self.time,
