@@ -1,0 +1,256 @@
+"""The delayed-feedback controller's step and outputs as compiled kernels on a buffer.
+
+:class:`.controller_unit.DelayedFeedbackUnit` keeps its history as a numpy array that
+each step replaces (``np.vstack``); a compiled master cannot.  Here the same history
+lives in rows ``a .. b - 1`` of a fixed buffer ``buf`` (columns ``t, zx, zy, Sx, Sy``),
+with ``cs = [a, b, start]``:
+
+* a step only writes at ``b`` and after (it may drop its last row and write it again,
+  identically: the left limit recorded at the same time from the same samples), and the
+  front is dropped by moving ``a``; so restoring ``cs`` restores the history, which is
+  how a master rolls a step back;
+* :func:`compact` moves the rows to the front when the buffer fills (call it only
+  where no rollback to an older ``cs`` can follow).
+
+:func:`controller_step` is ``DelayedFeedbackUnit._advance`` and :func:`controller_outputs`
+its ``_outputs``, operation for operation (the same lookups on the same rows in the same
+order), so the two agree bit for bit (``tests/test_flat_controller.py``).  The
+parameter row is :func:`controller_params`.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from typing import Any
+
+import numpy as np
+
+from .controller import (
+    MODULATION_SHAPES,
+    PIECE_TOL,
+    base_delay,
+    delay_at,
+    delayed_arrivals,
+    etdas_blend,
+    feedback_force,
+    piece_index,
+    switch_interval,
+)
+from .controller_unit import _lookup
+from .jit import njit
+
+# the parameter row
+C_GAIN, C_MEMORY, C_T_ON, C_VELOCITY, C_TAU0, C_EPS, C_NU, C_SHAPE, C_SEED = range(9)
+N_FOUND = 64  # jumps and kinks of the filter one step may meet
+OK, FULL = 0, 1  # statuses of controller_step: done; the buffer (or N_FOUND) too small
+
+
+def controller_params(params: Mapping[str, Any]) -> np.ndarray:
+    """The parameter row of a controller with (checked) ``params``."""
+    p = np.zeros(9)
+    p[C_GAIN], p[C_MEMORY], p[C_T_ON] = params["gain"], params["memory"], params["t_on"]
+    p[C_VELOCITY] = params["feedback"] == "velocity"
+    p[C_TAU0] = base_delay(params, params["speed"])
+    p[C_EPS], p[C_NU] = params["modulation_amplitude"], params["modulation_frequency"]
+    p[C_SHAPE] = MODULATION_SHAPES.index(params["modulation_shape"])
+    p[C_SEED] = params["modulation_seed"]
+    return p
+
+
+@njit
+def _delay(p, t):  # pragma: no cover - compiled
+    return delay_at(t, p[C_TAU0], p[C_EPS], p[C_NU], int(p[C_SHAPE]), int(p[C_SEED]))
+
+
+@njit
+def _gather(buf, a, m, b, r, scratch):  # pragma: no cover - compiled
+    """Rows ``a .. m - 1`` then ``b .. b + r - 1`` of ``buf`` into ``scratch``; their count."""
+    k = 0
+    for i in range(a, m):
+        scratch[k, :] = buf[i, :]
+        k += 1
+    for i in range(b, b + r):
+        scratch[k, :] = buf[i, :]
+        k += 1
+    return k
+
+
+@njit
+def _filter(p, scratch, k, tq, left, zx, zy, out):  # pragma: no cover - compiled
+    """``DelayedFeedbackUnit._filter`` of the ``k`` rows in ``scratch`` at ``tq``."""
+    if k == 0:
+        return zx, zy
+    _lookup(scratch[:k], tq, left, out)
+    memory = p[C_MEMORY]
+    return etdas_blend(memory, out[0], out[2]), etdas_blend(memory, out[1], out[3])
+
+
+@njit
+def _rows_before(buf, a, b, t):  # pragma: no cover - compiled
+    """The end of the rows before ``t`` (the history is in time order)."""
+    m = a
+    while m < b and buf[m, 0] < t:
+        m += 1
+    return m
+
+
+@njit
+def _filter_jumps(p, buf, a, m, b, start, t, zx, zy, scratch):  # pragma: no cover
+    """``DelayedFeedbackUnit._filter_jumps`` of rows ``a .. m - 1``: its rows written
+    from ``b`` on; returns their number, -1 when they do not fit."""
+    if m == a:
+        return 0
+    tau0, eps, nu = p[C_TAU0], p[C_EPS], p[C_NU]
+    shape, seed = int(p[C_SHAPE]), int(p[C_SEED])
+    t_last = buf[m - 1, 0]
+    # the recorded jumps (two rows at one time) and the start, sorted, each once
+    times = np.empty(m - a)
+    n_t = 0
+    for i in range(a + 1, m):
+        if buf[i, 0] == buf[i - 1, 0]:
+            times[n_t] = buf[i, 0]
+            n_t += 1
+    times[n_t] = start
+    n_t += 1
+    times = np.unique(times[:n_t])
+    found = np.empty((N_FOUND, 4))  # (arrival s, delayed time left, right, side: 0 left)
+    n_f = 0
+    arrivals = np.empty(4)
+    for j in times:
+        n = delayed_arrivals(j, tau0, eps, nu, shape, seed, arrivals)
+        for i in range(n):
+            s = arrivals[i]
+            if t_last < s < t:
+                if n_f == N_FOUND:
+                    return -1
+                found[n_f, 0], found[n_f, 1], found[n_f, 2], found[n_f, 3] = s, j, j, 0.0
+                n_f += 1
+    width = switch_interval(nu, shape) if eps > 0.0 else math.inf
+    if width < math.inf:
+        k = piece_index(t_last, width) + 1.0
+        while k * width < t:
+            if n_f == N_FOUND:
+                return -1
+            s = k * width
+            before = (k - 2.0 * PIECE_TOL) * width
+            found[n_f, 0], found[n_f, 1] = s, s - _delay(p, before)
+            found[n_f, 2], found[n_f, 3] = s - _delay(p, s), 1.0
+            n_f += 1
+            k += 1.0
+    # sorted as Python sorts the tuples: by s, then the delayed times, then the side
+    for i in range(1, n_f):
+        row = found[i].copy()
+        k = i
+        while k > 0 and (
+            (found[k - 1, 0], found[k - 1, 1], found[k - 1, 2], found[k - 1, 3])
+            > (row[0], row[1], row[2], row[3])
+        ):
+            found[k] = found[k - 1]
+            k -= 1
+        found[k] = row
+    if b + 2 * n_f + 1 > buf.shape[0]:
+        return -1
+    out = np.empty(4)
+    r = 0
+    for i in range(n_f):
+        s, tq_left, tq_right, side = found[i, 0], found[i, 1], found[i, 2], found[i, 3]
+        k = _gather(buf, a, m, b, r, scratch)
+        scratch[k, 0], scratch[k, 1], scratch[k, 2] = t, zx, zy
+        scratch[k, 3], scratch[k, 4] = math.nan, math.nan
+        _lookup(scratch[: k + 1], s, False, out)
+        z0, z1 = out[0], out[1]
+        lx, ly = _filter(p, scratch, k, tq_left, side == 0.0, zx, zy, out)
+        rx, ry = _filter(p, scratch, k, tq_right, False, zx, zy, out)
+        buf[b + r, 0], buf[b + r, 1], buf[b + r, 2] = s, z0, z1
+        buf[b + r, 3], buf[b + r, 4] = lx, ly
+        buf[b + r + 1, 0], buf[b + r + 1, 1], buf[b + r + 1, 2] = s, z0, z1
+        buf[b + r + 1, 3], buf[b + r + 1, 4] = rx, ry
+        r += 2
+    return r
+
+
+@njit
+def _signal(p, x, y, vx, vy):  # pragma: no cover - compiled
+    if p[C_VELOCITY] != 0.0:
+        return vx, vy
+    return x, y
+
+
+@njit
+def controller_step(p, cs, buf, scratch, x, y, vx, vy, t):  # pragma: no cover - compiled
+    """``DelayedFeedbackUnit._advance`` at time ``t`` (s) with the disc state
+    ``x, y, vx, vy`` as inputs, on the history ``buf`` and ``cs``; returns :data:`OK`,
+    or :data:`FULL` with ``cs`` unchanged when the buffer is too small."""
+    a, b, start = int(cs[0]), int(cs[1]), cs[2]
+    zx, zy = _signal(p, x, y, vx, vy)
+    while b > a and buf[b - 1, 0] > t:  # stepped again from an earlier time
+        b -= 1
+    if b > a and buf[b - 1, 0] == t and buf[b - 1, 1] == zx and buf[b - 1, 2] == zy:
+        b -= 1
+    if math.isnan(start):
+        start = t
+    if p[C_MEMORY] == 0.0:
+        sx, sy = zx, zy
+    else:
+        m = _rows_before(buf, a, b, t)
+        r = _filter_jumps(p, buf, a, m, b, start, t, zx, zy, scratch)
+        if r < 0:
+            return FULL
+        k = _gather(buf, a, m, b, r, scratch)
+        b += r
+        out = np.empty(4)
+        sx, sy = _filter(p, scratch, k, t - _delay(p, t), False, zx, zy, out)
+    keep = t - p[C_TAU0] - p[C_EPS]
+    first = a  # numpy's searchsorted (left) of keep among the times
+    hi = b
+    while first < hi:
+        mid = (first + hi) // 2
+        if buf[mid, 0] < keep:
+            first = mid + 1
+        else:
+            hi = mid
+    first = max(first - a - 3, 0)
+    if 0 < first < b - a and buf[a + first, 0] == buf[a + first - 1, 0]:
+        first -= 1
+    a += first
+    if b >= buf.shape[0]:
+        return FULL
+    buf[b, 0], buf[b, 1], buf[b, 2], buf[b, 3], buf[b, 4] = t, zx, zy, sx, sy
+    cs[0], cs[1], cs[2] = a, b + 1, start
+    return OK
+
+
+@njit
+def controller_outputs(p, cs, buf, scratch, x, y, vx, vy, t, out):  # pragma: no cover
+    """``DelayedFeedbackUnit._outputs`` at time ``t`` into ``out``: ux, uy (N) and the
+    current delay (s)."""
+    tau = _delay(p, t)
+    out[2] = tau
+    if t < p[C_T_ON]:
+        out[0], out[1] = 0.0, 0.0
+        return
+    a, b = int(cs[0]), int(cs[1])
+    zx, zy = _signal(p, x, y, vx, vy)
+    m = _rows_before(buf, a, b, t)
+    k = _gather(buf, a, m, b, 0, scratch)
+    v = np.empty(4)
+    if p[C_MEMORY] == 0.0:
+        sx, sy = zx, zy
+    else:
+        sx, sy = _filter(p, scratch, k, t - _delay(p, t), False, zx, zy, v)
+    scratch[k, 0], scratch[k, 1], scratch[k, 2], scratch[k, 3], scratch[k, 4] = t, zx, zy, sx, sy
+    _lookup(scratch[: k + 1], t - tau, False, v)
+    memory = p[C_MEMORY]
+    dx, dy = etdas_blend(memory, v[0], v[2]), etdas_blend(memory, v[1], v[3])
+    out[0] = feedback_force(p[C_GAIN], zx, dx)
+    out[1] = feedback_force(p[C_GAIN], zy, dy)
+
+
+@njit
+def compact(cs, buf):  # pragma: no cover - compiled
+    """Move the history to the front of the buffer (``a`` becomes 0)."""
+    a, b = int(cs[0]), int(cs[1])
+    for i in range(b - a):
+        buf[i, :] = buf[a + i, :]
+    cs[0], cs[1] = 0, b - a
