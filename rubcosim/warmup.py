@@ -28,7 +28,29 @@ def _engines() -> str:
     api.basins("impact_duffing", grid=(4, 4), samples=1, region="-2:1,-2:2")
     api.lyapunov("impact_duffing", periods=2, transient=1)
     api.simulate("jeffcott_rigid_stator", "accurate", set={"sim.t_end": 0.002})
-    return "engines, analysis kernels and the variational equations"
+    _controller_kernels()
+    return "engines, analysis kernels, the variational equations, the controller's kernels"
+
+
+def _controller_kernels() -> None:
+    """The delayed-feedback controller's kernels on a buffer (flat_controller): in this
+    job, the shorter of the two, where their compilation fits in the other's time."""
+    import numpy as np
+
+    from .components.flat_controller import (
+        compact,
+        controller_outputs,
+        controller_params,
+        controller_step,
+    )
+    from .components.units import make_unit
+
+    unit = make_unit("controller", "delayed_feedback", gain=1.0, delay=1e-3, memory=0.5, speed=0.0)
+    p = controller_params(unit.params)
+    cs, buf, scratch = np.array([0.0, 0.0, np.nan]), np.zeros((8, 5)), np.zeros((9, 5))
+    controller_step(p, cs, buf, scratch, 0.0, 0.0, 0.0, 0.0, 0.0)
+    controller_outputs(p, cs, buf, scratch, 0.0, 0.0, 0.0, 0.0, 0.0, np.empty(3))
+    compact(cs, buf)
 
 
 def _units() -> str:
