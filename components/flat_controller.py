@@ -9,13 +9,15 @@ with ``cs = [a, b, start]``:
   identically: the left limit recorded at the same time from the same samples), and the
   front is dropped by moving ``a``; so restoring ``cs`` restores the history, which is
   how a master rolls a step back;
-* :func:`compact` moves the rows to the front when the buffer fills (call it only
-  where no rollback to an older ``cs`` can follow).
+* :func:`make_room` moves the rows to the front when the buffer fills (only where no
+  rollback to older bounds can follow: a master keeps a copy of the history in its
+  checkpoint).
 
 :func:`controller_step` is ``DelayedFeedbackUnit._advance`` and :func:`controller_outputs`
 its ``_outputs``, operation for operation (the same lookups on the same rows in the same
 order), so the two agree bit for bit (``tests/test_flat_controller.py``).  The
-parameter row is :func:`controller_params`.
+parameter row is :func:`controller_params`; :func:`row_step` and :func:`row_outputs`
+are the compiled master's unit step and outputs on the controller's row.
 """
 
 from __future__ import annotations
@@ -37,7 +39,8 @@ from .controller import (
     piece_index,
     switch_interval,
 )
-from .controller_unit import _lookup
+from .delay_history import _lookup
+from .flat_rows import STEP_BAD_INPUT, STEP_NO_ROOM, STEP_NOT_FINITE, STEP_OK, T, U, Y
 from .jit import njit
 
 # the parameter row
@@ -88,11 +91,42 @@ def _filter(p, scratch, k, tq, left, zx, zy, out):  # pragma: no cover - compile
 
 @njit
 def _rows_before(buf, a, b, t):  # pragma: no cover - compiled
-    """The end of the rows before ``t`` (the history is in time order)."""
-    m = a
-    while m < b and buf[m, 0] < t:
-        m += 1
+    """The end of the rows before ``t`` (the history is in time order; rows at ``t`` or
+    later, if any, are the last few: searched from the end)."""
+    m = b
+    while m > a and buf[m - 1, 0] >= t:
+        m -= 1
     return m
+
+
+STENCIL_TIMES = 8  # distinct sample times past tq that decide a lookup's stencil
+
+
+@njit
+def _cut(buf, a, m, tq):  # pragma: no cover - compiled
+    """Where the rows ``a .. m - 1`` stop mattering to a lookup at ``tq``: after the
+    samples at :data:`STENCIL_TIMES` distinct times past ``tq``; ``m`` when that is
+    all of them.  A lookup's result depends on the piece holding ``tq`` only within four
+    samples of it (``delay_history._interpolate_rows``: the stencil's start is clamped
+    by the piece's end only when that end is within four samples), and each distinct
+    time keeps at least one sample of the signal, so the rows past the cut (and the
+    current sample after them) change nothing: the lookup on ``buf[a:cut]`` is the
+    same, bit for bit, without gathering the whole history."""
+    lo, hi = a, m
+    while lo < hi:  # the first row after tq
+        mid = (lo + hi) // 2
+        if buf[mid, 0] <= tq:
+            lo = mid + 1
+        else:
+            hi = mid
+    e = lo
+    for _ in range(STENCIL_TIMES):
+        if e >= m:
+            return m
+        t_g = buf[e, 0]
+        while e < m and buf[e, 0] == t_g:
+            e += 1
+    return e
 
 
 @njit
@@ -197,10 +231,15 @@ def controller_step(p, cs, buf, scratch, x, y, vx, vy, t):  # pragma: no cover -
         r = _filter_jumps(p, buf, a, m, b, start, t, zx, zy, scratch)
         if r < 0:
             return FULL
-        k = _gather(buf, a, m, b, r, scratch)
-        b += r
         out = np.empty(4)
-        sx, sy = _filter(p, scratch, k, t - _delay(p, t), False, zx, zy, out)
+        tq = t - _delay(p, t)
+        e = _cut(buf, a, m, tq)
+        if e < m:  # the new rows (from b) lie past the cut too
+            sx, sy = _filter(p, buf[a:e], e - a, tq, False, zx, zy, out)
+        else:
+            k = _gather(buf, a, m, b, r, scratch)
+            sx, sy = _filter(p, scratch, k, tq, False, zx, zy, out)
+        b += r
     keep = t - p[C_TAU0] - p[C_EPS]
     first = a  # numpy's searchsorted (left) of keep among the times
     hi = b
@@ -233,14 +272,20 @@ def controller_outputs(p, cs, buf, scratch, x, y, vx, vy, t, out):  # pragma: no
     a, b = int(cs[0]), int(cs[1])
     zx, zy = _signal(p, x, y, vx, vy)
     m = _rows_before(buf, a, b, t)
-    k = _gather(buf, a, m, b, 0, scratch)
     v = np.empty(4)
-    if p[C_MEMORY] == 0.0:
-        sx, sy = zx, zy
+    tq = t - tau
+    e = _cut(buf, a, m, tq)
+    if e < m:  # the current sample (and its filter) past the cut: looked up in place
+        _lookup(buf[a:e], tq, False, v)
     else:
-        sx, sy = _filter(p, scratch, k, t - _delay(p, t), False, zx, zy, v)
-    scratch[k, 0], scratch[k, 1], scratch[k, 2], scratch[k, 3], scratch[k, 4] = t, zx, zy, sx, sy
-    _lookup(scratch[: k + 1], t - tau, False, v)
+        k = _gather(buf, a, m, b, 0, scratch)
+        if p[C_MEMORY] == 0.0:
+            sx, sy = zx, zy
+        else:
+            sx, sy = _filter(p, scratch, k, t - _delay(p, t), False, zx, zy, v)
+        scratch[k, 0], scratch[k, 1], scratch[k, 2] = t, zx, zy
+        scratch[k, 3], scratch[k, 4] = sx, sy
+        _lookup(scratch[: k + 1], tq, False, v)
     memory = p[C_MEMORY]
     dx, dy = etdas_blend(memory, v[0], v[2]), etdas_blend(memory, v[1], v[3])
     out[0] = feedback_force(p[C_GAIN], zx, dx)
@@ -248,9 +293,46 @@ def controller_outputs(p, cs, buf, scratch, x, y, vx, vy, t, out):  # pragma: no
 
 
 @njit
-def compact(cs, buf):  # pragma: no cover - compiled
-    """Move the history to the front of the buffer (``a`` becomes 0)."""
+def make_room(cs, buf, need):  # pragma: no cover - compiled
+    """Make ``need`` rows free after the history with bounds ``cs``, moving it to the
+    front of ``buf`` if they are not; returns whether they are free now (if not, the
+    buffer must grow).  Only where no rollback to older bounds can follow."""
     a, b = int(cs[0]), int(cs[1])
-    for i in range(b - a):
-        buf[i, :] = buf[a + i, :]
-    cs[0], cs[1] = 0, b - a
+    if buf.shape[0] - b >= need:
+        return True
+    if a > 0:
+        for i in range(b - a):
+            buf[i, :] = buf[a + i, :]
+        cs[0], cs[1] = 0, b - a
+    return buf.shape[0] - (b - a) >= need
+
+
+@njit
+def row_step(p, st, buf, scratch, t, h):  # pragma: no cover - compiled
+    """``Unit.do_step`` of a controller whose bounds ``cs`` are ``st[Y:Y + 3]`` of its row
+    (:mod:`.flat_rows`; inputs x, y, vx, vy): a row status (:data:`.flat_rows.STEP_OK`,
+    or why it failed, the row as it was)."""
+    if not (math.isfinite(t) and math.isfinite(h)) or h < 0.0:
+        return STEP_BAD_INPUT
+    for i in range(4):
+        if not math.isfinite(st[U + 3 * i]):
+            return STEP_BAD_INPUT
+    cs = st[Y : Y + 3]
+    saved = cs.copy()
+    if controller_step(p, cs, buf, scratch, st[U], st[U + 3], st[U + 6], st[U + 9], t) != OK:
+        return STEP_NO_ROOM
+    b = int(cs[1]) - 1
+    for j in range(1, 5):
+        if not math.isfinite(buf[b, j]):
+            cs[:] = saved
+            return STEP_NOT_FINITE
+    st[T] = t + h
+    return STEP_OK
+
+
+@njit
+def row_outputs(p, st, buf, scratch, out):  # pragma: no cover - compiled
+    """:func:`controller_outputs` of the controller in row ``st`` at its time."""
+    controller_outputs(p, st[Y : Y + 3], buf, scratch, st[U], st[U + 3], st[U + 6], st[U + 9],
+                       st[T], out)  # fmt: skip
+    return STEP_OK

@@ -29,3 +29,4 @@ STEP_OK = 0
 STEP_BAD_INPUT = 1  # an input is not finite
 STEP_FAILED = 2  # the integrator failed (step size below round-off, state not finite)
 STEP_NOT_FINITE = 3  # the state is not finite after the step
+STEP_NO_ROOM = 7  # a controller's history outgrew its buffer (the master makes room first)

@@ -15,7 +15,8 @@ operation for operation, from the same physics kernels (:mod:`.rotor`,
 :mod:`.linear_propagation`, :mod:`.stepping`); ``tests/test_flat_master.py`` holds
 the two masters to 1e-12 (they are bit-identical).  The hybrid unit types (the
 impact oscillators) step on rows through :mod:`.flat_hybrid`.  A unit type without a
-row form (the controller with its delay history, FMUs) runs on the Python master.
+row form (FMUs) runs on the Python master; the controller's row holds the bounds of
+its history, which lives in a buffer of the master's (:mod:`.flat_controller`).
 """
 
 from __future__ import annotations
@@ -27,6 +28,7 @@ from typing import Any
 import numpy as np
 
 from .bearing import film_scale, linear_bearing_force, oilfilm_force
+from .flat_controller import controller_params
 from .flat_hybrid import hybrid_flat_type, hybrid_params, hybrid_step
 from .flat_rows import (  # noqa: F401 - the row layout and statuses, re-exported
     HY_IMPACTS,
@@ -38,6 +40,7 @@ from .flat_rows import (  # noqa: F401 - the row layout and statuses, re-exporte
     ROW,
     STEP_BAD_INPUT,
     STEP_FAILED,
+    STEP_NO_ROOM,
     STEP_NOT_FINITE,
     STEP_OK,
     H,
@@ -68,8 +71,10 @@ from .stator import (
 from .stepping import OK, advance
 from .unit_odes import CASING, CASING_P, JEFFCOTT, JEFFCOTT_P, TWO_MASS, TWO_MASS_P
 
-# flat unit kinds (K_HYBRID: every hybrid unit type, :mod:`.flat_hybrid`)
+# flat unit kinds (K_HYBRID: every hybrid unit type, :mod:`.flat_hybrid`; K_CONTROLLER:
+# the delayed-feedback controller, its history in a buffer, :mod:`.flat_controller`)
 K_JEFFCOTT, K_TWO_MASS, K_RIGID, K_ELASTIC, K_CASING, K_OILFILM, K_LINEAR, K_HYBRID = range(8)
+K_CONTROLLER = 8
 
 OUT_NO_FILM = 4  # a journal outside the oil film: no bearing force
 OUT_BAD_MODE = 5  # a contact mode that is not 0, 1, 2 or 3
@@ -79,6 +84,7 @@ REASONS = {
     STEP_BAD_INPUT: "an input or the step is not finite",
     STEP_FAILED: "the unit's integrator failed (step size below round-off)",
     STEP_NOT_FINITE: "the state is not finite after the step",
+    STEP_NO_ROOM: "its history outgrew its buffer",
     OUT_NO_FILM: "the journal touches the bearing wall (eccentricity ratio {ratio:.6g} >= 1); "
     "the oil-film model has no force there",
     OUT_BAD_MODE: "{name}.contact_mode = {mode} is not 0, 1, 2 or 3",
@@ -113,6 +119,7 @@ FLAT_TYPES: dict[tuple[str, str], tuple[int, int, tuple[str, ...], tuple[str, ..
     ("stator", "casing"): (K_CASING, CASING, CASING_P, ("x", "y", "vx", "vy")),
     ("bearing", "oilfilm"): (K_OILFILM, -1, OILFILM_P, ()),
     ("bearing", "linear"): (K_LINEAR, -1, LINEAR_P, ()),
+    ("controller", "delayed_feedback"): (K_CONTROLLER, -1, (), ()),
 }
 
 
@@ -129,13 +136,17 @@ def flat_params(role: str, type_name: str, params: Mapping[str, Any]) -> np.ndar
     (:func:`.flat_hybrid.hybrid_params`)."""
     if (role, type_name) not in FLAT_TYPES:
         return hybrid_params(role, type_name, params)
+    row = np.zeros(MAX_PARAMS)
+    if type_name == "delayed_feedback":
+        p = controller_params(params)
+        row[: p.size] = p
+        return row
     names = FLAT_TYPES[(role, type_name)][2]
     q = dict(params)
     if type_name in ("elastic", "casing"):
         q["contact_damping"] = penalty_damping(q)
     if type_name == "oilfilm":
         q["sigma"] = film_scale(q)
-    row = np.zeros(MAX_PARAMS)
     for i, name in enumerate(names):
         row[i] = float(q.get(name, 0.0))
     return row

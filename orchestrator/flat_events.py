@@ -292,6 +292,11 @@ def overdue(G, S, p):
 def event(G, S, kind, p):
     """Handle an event of ``kind`` from protocol ``p`` (``_event``): the protocol acts,
     the event is recorded, the inputs settle and the extrapolation restarts."""
+    for k in range(G.kind.shape[0]):
+        # a controller records the left limit of its inputs first (a zero-length step
+        # on the pre-event inputs): the jump the event makes stays a jump in its history
+        if G.ctl[k] >= 0 and unit_step(G, S, k, S.ms[MS_TIME], 0.0):
+            return 1
     status = 0
     if G.pr_kind[p] == PR_RIGID:
         if kind == EV_IMPACT:

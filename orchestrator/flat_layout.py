@@ -6,8 +6,12 @@ protocols, what to record and the settings.  :class:`FlatState` (``S``) is
 everything that does: the unit rows (:mod:`rubcosim.components.flat_units`), the
 master's copy of the outputs, the input histories, the scales, the indicators'
 acceleration bounds, the protocols' states, the counters, the recorded rows and
-events, the snapshot and the checkpoint.  Slot and code constants are named here
-once for the kernels and the Python driver (:mod:`.flat_master`).
+events, the snapshot and the checkpoint, and the controllers' history buffers
+(``cbuf[G.ctl[k]]`` for controller ``k``, whose row holds the history's bounds, so
+that restoring the rows restores the histories; ``cscr`` their scratch; ``ck_cbuf``
+the checkpoint's copy).  Slot and
+code constants are named here once for the kernels and the Python driver
+(:mod:`.flat_master`).
 """
 
 from __future__ import annotations
@@ -27,7 +31,7 @@ FlatGraph = namedtuple(
         "kind", "ode", "exact", "ny", "nin", "nout", "ode_idx", "node", "p", "tol", "feed",
         "in_order", "order", "eval_order", "c_input", "src0", "src_unit", "src_out", "c_gs",
         "conn0", "conns", "nominal", "bound", "pr_kind", "pr_stator", "pr_rotor", "pr_f",
-        "rec_unit", "rec_out", "out_times", "model", "iset", "fset", "omap", "mval",
+        "rec_unit", "rec_out", "out_times", "model", "iset", "fset", "omap", "mval", "ctl",
     ],
 )  # fmt: skip
 
@@ -36,7 +40,8 @@ FlatState = namedtuple(
     [
         "ust", "out", "hist", "scale", "acc", "prs", "ms", "cnt", "given", "real", "scratch",
         "rows", "ev_t", "ev_kind", "ev_unit", "snap", "ck_ust", "ck_out", "ck_hist",
-        "ck_scale", "ck_acc", "ck_prs", "ck_ms", "info", "finfo",
+        "ck_scale", "ck_acc", "ck_prs", "ck_ms", "info", "finfo", "cbuf", "cscr",
+        "ck_cbuf",
     ],
 )  # fmt: skip
 

@@ -5,7 +5,8 @@ takes macro steps (snapshot, step, reject or accept, replay from the checkpoint,
 locate, events, checks, recording) exactly as :meth:`.master.Master._loop` does,
 and returns :data:`.flat_layout.DONE` at the end, :data:`.flat_layout.PAUSED`
 after ``max_steps`` loop passes (the driver shows progress and resumes),
-:data:`.flat_layout.NEED_ROOM` when the event buffer must grow, or
+:data:`.flat_layout.NEED_ROOM` when the event buffer or a controller's history
+buffer must grow, or
 :data:`.flat_layout.FAILED` with the reason in ``S.info``.  Every variable of the
 loop lives in ``S``, so a pause and a resume are seamless.
 """
@@ -16,6 +17,8 @@ import math
 
 import numpy as np
 
+from rubcosim.components.flat_controller import N_FOUND, make_room
+from rubcosim.components.flat_rows import Y
 from rubcosim.components.jit import njit
 
 from .coupling_kernels import pi_accept, pi_reject
@@ -76,6 +79,19 @@ EVENT_ROOM = 16  # free event slots a loop pass needs
 
 
 @njit(inline="always")
+def controller_room(G, S):
+    """Whether every controller's buffer has the rows a loop pass may write: a step and
+    the left-limit steps of the events after it (each at most ``2 N_FOUND + 1`` rows),
+    after moving the histories to the front if need be (the checkpoint has its copy)."""
+    need = (2 * N_FOUND + 1) * (2 + G.pr_kind.shape[0])
+    for k in range(G.kind.shape[0]):
+        c = G.ctl[k]
+        if c >= 0 and not make_room(S.ust[k, Y : Y + 3], S.cbuf[c], need):
+            return False
+    return True
+
+
+@njit(inline="always")
 def _set_time(G, S, t):
     S.ms[MS_TIME] = t
     for k in range(G.kind.shape[0]):
@@ -96,21 +112,22 @@ def _record_due(G, S):
 
 
 @njit
-def _checkpoint(S):
+def _checkpoint(G, S):
     """Save what a replay restores: the units and the master's state (``_master_state``)."""
     S.cnt[N_SNAPSHOTS] += 1
-    _copy(S, np.bool_(True))
+    _copy(G, S, np.bool_(True))
 
 
 @njit
-def _replay(S):
-    _copy(S, np.bool_(False))
+def _replay(G, S):
+    _copy(G, S, np.bool_(False))
 
 
 @njit
-def _copy(S, save):
-    """Unit rows, outputs, histories, scales, acceleration bounds, protocol states and
-    the master's saved scalars: into the checkpoint (``save``) or back from it."""
+def _copy(G, S, save):
+    """Unit rows, outputs, histories, scales, acceleration bounds, protocol states,
+    the master's saved scalars and the controllers' histories: into the checkpoint
+    (``save``) or back from it."""
     pairs = ((S.ust, S.ck_ust), (S.out, S.ck_out), (S.hist, S.ck_hist), (S.acc, S.ck_acc),
              (S.prs, S.ck_prs))  # fmt: skip
     for live, kept in pairs:
@@ -124,6 +141,17 @@ def _copy(S, save):
     else:
         S.scale[:] = S.ck_scale
         S.ms[:MS_SAVED] = S.ck_ms
+    for k in range(G.kind.shape[0]):
+        c = G.ctl[k]
+        if c < 0:
+            continue
+        if save:  # the history's rows, to the front of the copy (its bounds: 0, n)
+            a, b = int(S.ust[k, Y]), int(S.ust[k, Y + 1])
+            S.ck_cbuf[c, : b - a] = S.cbuf[c, a:b]
+            S.ck_ust[k, Y], S.ck_ust[k, Y + 1] = 0.0, float(b - a)
+        else:
+            n = int(S.ust[k, Y + 1])
+            S.cbuf[c, :n] = S.ck_cbuf[c, :n]
 
 
 @njit(inline="always")
@@ -188,14 +216,14 @@ def run_loop(G, S, max_steps):  # noqa: C901 - one loop, as the Python master's
     inds = np.zeros((MAX_INDICATORS, 6), dtype=np.int64)
     bef = np.zeros((MAX_INDICATORS, 2))
     if S.ms[MS_STARTED] == 0.0:
-        _checkpoint(S)
+        _checkpoint(G, S)
         S.ms[MS_STARTED] = 1.0
         S.ms[MS_SNAP_UNTIL] = -math.inf
     passes = 0
     while S.ms[MS_TIME] < t_end:
         if passes >= max_steps:
             return PAUSED
-        if S.ev_t.shape[0] - int(S.ms[MS_N_EVENTS]) < EVENT_ROOM:
+        if S.ev_t.shape[0] - int(S.ms[MS_N_EVENTS]) < EVENT_ROOM or not controller_room(G, S):
             return NEED_ROOM
         passes += 1
         t = S.ms[MS_TIME]
@@ -214,7 +242,7 @@ def run_loop(G, S, max_steps):  # noqa: C901 - one loop, as the Python master's
             S.cnt[N_SNAPSHOTS] += 1
             S.snap[:] = S.ust
         elif S.ms[MS_SINCE_CHECKPOINT] >= CHECKPOINT_EVERY:
-            _checkpoint(S)
+            _checkpoint(G, S)
             S.ms[MS_SINCE_CHECKPOINT] = 0.0
         for i in range(n):
             bef[i, 0], bef[i, 1] = value(S, inds[i])
@@ -241,7 +269,7 @@ def run_loop(G, S, max_steps):  # noqa: C901 - one loop, as the Python master's
         hit, lo, hi = first_crossing(S, inds, n, bef, h) if n else (-1, 0.0, 0.0)
         if hit >= 0 and not snap and events_mode == EVENTS_LOCATE:
             # an unannounced crossing: replay deterministically from the checkpoint
-            _replay(S)
+            _replay(G, S)
             S.ms[MS_SNAP_UNTIL] = t + h
             S.cnt[N_REPLAYS] += 1
             continue

@@ -2,8 +2,8 @@
 
 :func:`flat_unsupported` says whether a master's units and protocols all have a
 compiled form (the rotors, the stators, the bearings, the hybrid impact
-oscillators, with the rigid or penalty contact protocols; not the controller or
-FMUs);
+oscillators, the delayed-feedback controller, with the rigid or penalty contact
+protocols; not FMUs);
 :func:`run_flat` then runs it: the graph and the units' current states are
 packed into arrays (:mod:`.flat_layout`), the compiled loop (:mod:`.flat_loop`)
 runs in chunks (a progress bar between them) and the recorded rows, events and
@@ -29,10 +29,11 @@ from rubcosim.progress import watch
 
 from . import flat_layout as L
 from .cosim_result import CosimResult
-from .flat_loop import run_loop, start
+from .flat_loop import EVENT_ROOM, run_loop, start
 from .protocols import ElasticContact, RigidContact
 
 CHUNK = 4000  # loop passes between progress updates
+HISTORY_ROWS = 4096  # a controller's history buffer to begin with (it grows when full)
 
 
 def flat_unsupported(master: Any) -> str | None:
@@ -46,8 +47,10 @@ def flat_unsupported(master: Any) -> str | None:
     for proto in master.protocols:
         if not isinstance(proto, RigidContact | ElasticContact):
             return f"protocol {type(proto).__name__} has no compiled form"
-    if master.left_limit_units:
-        return "a unit records its inputs' left limits"
+    for name in master.left_limit_units:  # the controller's zero-length steps at events
+        unit = master.units[name]
+        if fu.flat_type(unit.role, unit.type_name)[0] != fu.K_CONTROLLER:
+            return f"unit {name} records its inputs' left limits"
     return None
 
 
@@ -97,6 +100,9 @@ def _graph(master: Any, t_end: float, times: np.ndarray, record: list[tuple[str,
         if isinstance(pr, RigidContact):
             pr_f[i] = pr.v_chat, pr.min_flight
     p_order = st.extrapolation if st.adaptive else 0
+    is_ctl = kind == fu.K_CONTROLLER  # each controller's history buffer: S.cbuf[ctl[k]]
+    ctl = np.full(n_units, -1, np.int64)
+    ctl[is_ctl] = np.arange(np.count_nonzero(is_ctl))
     events = {"locate": L.EVENTS_LOCATE, "step": L.EVENTS_STEP, "off": L.EVENTS_OFF}
     return L.FlatGraph(
         kind=kind, ode=ode, exact=exact,
@@ -129,7 +135,7 @@ def _graph(master: Any, t_end: float, times: np.ndarray, record: list[tuple[str,
                        events[st.events], st.max_events_per_period, p_order + 1], np.int64),
         fset=np.array([st.rtol, st.iteration_tol, st.min_step, st.max_step, master.t_tol,
                        master.period, t_end]),
-        omap=omap, mval=mval,
+        omap=omap, mval=mval, ctl=ctl,
     )  # fmt: skip
 
 
@@ -152,6 +158,7 @@ def _state(master: Any, G: L.FlatGraph, t_start: float) -> L.FlatState:
     hist = np.zeros((n_conn, 7))
     acc = np.full((n_units, fu.MAX_OUTPUTS), np.nan)
     cap = 1024
+    cbuf, cscr = _histories(master, G, ust)
     return L.FlatState(
         ust=ust, out=out, hist=hist, scale=np.zeros(n_conn), acc=acc, prs=prs, ms=ms,
         cnt=np.zeros(len(L.COUNTERS), np.int64), given=np.zeros(n_conn), real=np.zeros(n_conn),
@@ -161,16 +168,41 @@ def _state(master: Any, G: L.FlatGraph, t_start: float) -> L.FlatState:
         snap=ust.copy(), ck_ust=ust.copy(), ck_out=out.copy(), ck_hist=hist.copy(),
         ck_scale=np.zeros(n_conn), ck_acc=acc.copy(), ck_prs=prs.copy(),
         ck_ms=np.zeros(L.MS_SAVED), info=np.zeros(3, np.int64), finfo=np.zeros(3),
+        cbuf=cbuf, cscr=cscr, ck_cbuf=cbuf.copy(),
     )  # fmt: skip
 
 
-def _grow_events(S: L.FlatState) -> L.FlatState:
+def _histories(master: Any, G: L.FlatGraph, ust: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The controllers' history buffers, each filled with its unit's history so far (its
+    bounds into the unit's row), and their scratch rows."""
+    units = list(master.units.values())
+    ks = [k for k in range(len(units)) if G.ctl[k] >= 0]
+    longest = max((len(units[k].state["history"]) for k in ks), default=0)
+    cap = max(HISTORY_ROWS, 2 * longest) if ks else 1
+    cbuf = np.zeros((max(len(ks), 1), cap, 5))
+    for k in ks:
+        hist = units[k].state["history"]
+        cbuf[G.ctl[k], : len(hist)] = hist
+        ust[k, fu.Y : fu.Y + 3] = 0.0, len(hist), units[k].state["start"]
+    return cbuf, np.zeros((cap + 1, 5))
+
+
+def _grow(S: L.FlatState) -> L.FlatState:
+    """Room for the loop to go on (it returned NEED_ROOM): for events, else for the
+    controllers' histories."""
     n = S.ev_t.shape[0]
-    return S._replace(
-        ev_t=np.concatenate([S.ev_t, np.zeros(n)]),
-        ev_kind=np.concatenate([S.ev_kind, np.zeros(n, np.int64)]),
-        ev_unit=np.concatenate([S.ev_unit, np.zeros(n, np.int64)]),
-    )
+    if n - int(S.ms[L.MS_N_EVENTS]) < EVENT_ROOM:
+        return S._replace(
+            ev_t=np.concatenate([S.ev_t, np.zeros(n)]),
+            ev_kind=np.concatenate([S.ev_kind, np.zeros(n, np.int64)]),
+            ev_unit=np.concatenate([S.ev_unit, np.zeros(n, np.int64)]),
+        )
+    n_ctl, cap, _ = S.cbuf.shape
+    cbuf = np.zeros((n_ctl, 2 * cap, 5))
+    cbuf[:, :cap] = S.cbuf
+    kept = np.zeros_like(cbuf)
+    kept[:, :cap] = S.ck_cbuf
+    return S._replace(cbuf=cbuf, cscr=np.zeros((2 * cap + 1, 5)), ck_cbuf=kept)
 
 
 def _message(master: Any, G: L.FlatGraph, S: L.FlatState) -> str:
@@ -234,7 +266,7 @@ def run_flat(
         while code != L.FAILED:
             code = run_loop(G, S, CHUNK)
             if code == L.NEED_ROOM:
-                S = _grow_events(S)
+                S = _grow(S)
             elif code == L.DONE:
                 break
     n = int(S.ms[L.MS_K_OUT])

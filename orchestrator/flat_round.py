@@ -8,8 +8,9 @@ state).  Every function returns a status (0: fine); a nonzero one is recorded in
 
 from __future__ import annotations
 
+from rubcosim.components.flat_controller import row_outputs, row_step
 from rubcosim.components.flat_hybrid import hybrid_outputs
-from rubcosim.components.flat_units import K_HYBRID, STEP_OK, U, do_step, outputs
+from rubcosim.components.flat_units import K_CONTROLLER, K_HYBRID, STEP_OK, U, do_step, outputs
 from rubcosim.components.jit import njit
 from rubcosim.components.kernels import polynomial_at
 
@@ -44,6 +45,8 @@ def unit_outputs(G, S, k):
     if G.kind[k] == K_HYBRID:
         status = hybrid_outputs(G.ny[k], G.node[k], G.nout[k], G.ode_idx[k, : G.node[k]],
                                 G.omap[k], G.mval[k], G.p[k], S.ust[k], S.out[k])  # fmt: skip
+    elif G.kind[k] == K_CONTROLLER:
+        status = row_outputs(G.p[k], S.ust[k], S.cbuf[G.ctl[k]], S.cscr, S.out[k])
     else:
         status = outputs(G.kind[k], G.p[k], S.ust[k], S.out[k])
     if status != STEP_OK:
@@ -53,9 +56,12 @@ def unit_outputs(G, S, k):
 
 @njit(inline="always")
 def unit_step(G, S, k, t, h):
-    idx = G.ode_idx[k, : G.node[k]]
-    status = do_step(G.kind[k], G.ode[k], G.exact[k], G.ny[k], G.nin[k], idx, G.p[k],
-                     G.tol[k], G.model, S.ust[k], t, h)  # fmt: skip
+    if G.kind[k] == K_CONTROLLER:
+        status = row_step(G.p[k], S.ust[k], S.cbuf[G.ctl[k]], S.cscr, t, h)
+    else:
+        idx = G.ode_idx[k, : G.node[k]]
+        status = do_step(G.kind[k], G.ode[k], G.exact[k], G.ny[k], G.nin[k], idx, G.p[k],
+                         G.tol[k], G.model, S.ust[k], t, h)  # fmt: skip
     if status != STEP_OK:
         return fail(S, FAIL_STEP, k, status)
     return 0

@@ -38,10 +38,10 @@ def _controller_kernels() -> None:
     import numpy as np
 
     from .components.flat_controller import (
-        compact,
         controller_outputs,
         controller_params,
         controller_step,
+        make_room,
     )
     from .components.units import make_unit
 
@@ -50,7 +50,7 @@ def _controller_kernels() -> None:
     cs, buf, scratch = np.array([0.0, 0.0, np.nan]), np.zeros((8, 5)), np.zeros((9, 5))
     controller_step(p, cs, buf, scratch, 0.0, 0.0, 0.0, 0.0, 0.0)
     controller_outputs(p, cs, buf, scratch, 0.0, 0.0, 0.0, 0.0, 0.0, np.empty(3))
-    compact(cs, buf)
+    make_room(cs, buf, 1)
 
 
 def _units() -> str:

@@ -13,10 +13,10 @@ import pytest
 from rubcosim.components.flat_controller import (
     FULL,
     OK,
-    compact,
     controller_outputs,
     controller_params,
     controller_step,
+    make_room,
 )
 from rubcosim.components.units import make_unit
 
@@ -114,9 +114,20 @@ def test_restoring_the_bounds_rolls_a_step_back_exactly():
     assert kernel.step(t) == OK  # a step taken, then rolled back
     kernel.cs[:] = saved
     np.testing.assert_array_equal(kernel.history(), before)
-    compact(kernel.cs, kernel.buf)
+
+
+def test_making_room_moves_the_history_to_the_front_and_keeps_it():
+    *_, (_, kernel, t) = drive(CASES["etdas, sine delay"], steps=300)
+    rows = kernel.history().copy()
+    outputs = kernel.outputs(t)
+    assert kernel.cs[0] > 0.0  # the front was dropped
+    free = kernel.buf.shape[0] - int(kernel.cs[1])
+    assert make_room(kernel.cs, kernel.buf, free)  # room enough: nothing moves
+    assert kernel.cs[0] > 0.0
+    assert not make_room(kernel.cs, kernel.buf, kernel.buf.shape[0])  # moved, still short
     assert kernel.cs[0] == 0.0
-    np.testing.assert_array_equal(kernel.history(), before)
+    np.testing.assert_array_equal(kernel.history(), rows)
+    np.testing.assert_array_equal(kernel.outputs(t), outputs)
 
 
 def test_a_buffer_too_small_is_reported_and_leaves_the_history():

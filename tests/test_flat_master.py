@@ -38,16 +38,45 @@ CASES = [
     ("two_mass_oilfilm_rub", 0.03, {"unit_integrator": "dop853"}),
     ("impact_duffing", 10.0, {}),
     ("two_dof_impact_oscillator", 40.0, {}),
+    # the controller: Pyragas velocity feedback, switched on at 0.166 s, through impacts
+    ("jeffcott_delayed_feedback", 0.3, {}),
+    # ETDAS on position, a sine-modulated delay (a signal continuous at the impacts)
+    (
+        "jeffcott_delayed_feedback",
+        0.12,
+        {
+            "set": [
+                "controller.memory=0.4",
+                'controller.feedback="position"',
+                "controller.t_on=0.02",
+                "controller.modulation_amplitude=2e-3",
+                "controller.modulation_frequency=40.0",
+            ]
+        },
+    ),
+    # ETDAS on velocity, a sawtooth delay (the filter's own jumps), penalty contact
+    (
+        "jeffcott_penalty_chaos_control",
+        0.08,
+        {
+            "set": [
+                "controller.memory=0.5",
+                "controller.t_on=0.02",
+                "controller.modulation_amplitude=2e-3",
+                "controller.modulation_frequency=60.0",
+                'controller.modulation_shape="sawtooth"',
+            ]
+        },
+    ),
 ]
 
 
 def _both(name: str, t_end: float, settings: dict):
-    sc = load_scenario(SCENARIOS / f"{name}.toml", [f"sim.t_end={t_end}"])
+    settings = dict(settings)
+    overrides = [f"sim.t_end={t_end}", *settings.pop("set", [])]
     if "unit_integrator" in settings:  # a unit parameter set from the settings
-        sc = load_scenario(
-            SCENARIOS / f"{name}.toml",
-            [f"sim.t_end={t_end}", f'cosim.unit_integrator="{settings["unit_integrator"]}"'],
-        )
+        overrides.append(f'cosim.unit_integrator="{settings["unit_integrator"]}"')
+    sc = load_scenario(SCENARIOS / f"{name}.toml", overrides)
     python = run_cosim(sc, replace(sc.cosim, master="python", **settings))
     compiled = run_cosim(sc, replace(sc.cosim, master="compiled", **settings))
     return python, compiled
@@ -56,6 +85,21 @@ def _both(name: str, t_end: float, settings: dict):
 @pytest.mark.parametrize("name,t_end,settings", CASES)
 def test_compiled_master_equals_the_python_master(name, t_end, settings):
     python, compiled = _both(name, t_end, settings)
+    _assert_same(python, compiled, t_end)
+
+
+def test_a_replay_from_the_checkpoint_restores_the_controllers_history():
+    # fixed steps: a crossing the indicators did not announce is replayed from the
+    # checkpoint, whose copy of the history the compiled master restores
+    overrides = ["controller.t_on=0.02", "controller.memory=0.3", "stator.x_offset=6e-5",
+                 "stator.friction=0.15"]  # fmt: skip
+    settings = {"adaptive": False, "step": 1e-4, "set": overrides}
+    python, compiled = _both("jeffcott_chaos_control", 0.2, settings)
+    assert python.counters["replays"] > 5
+    _assert_same(python, compiled, 0.2)
+
+
+def _assert_same(python, compiled, t_end):
     assert python.ok and compiled.ok, (python.message, compiled.message)
     assert (python.master, compiled.master) == ("python", "compiled")
     assert compiled.counters == python.counters
@@ -80,16 +124,31 @@ def test_compiled_master_fails_where_the_python_master_fails_with_the_same_reaso
     np.testing.assert_array_equal(compiled.values, python.values)
 
 
-def test_the_master_setting_is_validated_and_compiled_names_what_it_cannot_run():
+def test_the_master_setting_is_validated_and_compiled_names_what_it_cannot_run(built_fmus):
     assert cosim_settings({"master": "compiled"}).master == "compiled"
     with pytest.raises(SettingsError, match=r"cosim\.master"):
         cosim_settings({"master": "numba"})
-    sc = load_scenario(SCENARIOS / "jeffcott_delayed_feedback.toml", ["sim.t_end=0.002"])
-    with pytest.raises(CosimError, match="controller"):
-        run_cosim(sc, replace(sc.cosim, master="compiled"))
-    # auto falls back to the Python master for the controller, and says so
-    fallback = run_cosim(sc, replace(sc.cosim, master="auto"))
+    sc = load_scenario(
+        SCENARIOS / "jeffcott_rigid_stator.toml", ["sim.t_end=0.002", 'cosim.fmu_units=["stator"]']
+    )
+    fmu_dir = next(iter(built_fmus.values())).parent
+    with pytest.raises(CosimError, match="unit stator is an FMU"):
+        run_cosim(sc, replace(sc.cosim, master="compiled"), fmu_dir=fmu_dir)
+    # auto falls back to the Python master for FMUs, and says so
+    fallback = run_cosim(sc, replace(sc.cosim, master="auto"), fmu_dir=fmu_dir)
     assert fallback.ok and fallback.master == "python"
+
+
+def test_controller_histories_that_outgrow_their_buffers_give_the_same_run(monkeypatch):
+    # buffers of 64 rows: they grow (doubling) and their rows move to the front (when
+    # the delay's worth of history fits) many times in the run; nothing may change
+    from rubcosim.orchestrator import flat_master
+
+    monkeypatch.setattr(flat_master, "HISTORY_ROWS", 64)
+    python, compiled = _both("jeffcott_delayed_feedback", 0.2, {"set": ["controller.t_on=0.01"]})
+    assert python.ok and compiled.ok, (python.message, compiled.message)
+    assert compiled.counters == python.counters and compiled.counters["events_impact"] > 5
+    np.testing.assert_array_equal(compiled.values, python.values)
 
 
 @pytest.mark.parametrize(

@@ -12,7 +12,7 @@ from rubcosim.components import jit, unit_odes
 from rubcosim.components.bearing import oilfilm_force, oilfilm_sigma
 from rubcosim.components.catalog import UNIT_TYPES
 from rubcosim.components.controller import base_delay
-from rubcosim.components.controller_unit import lagrange_cubic, lookup, lookup_arrays
+from rubcosim.components.delay_history import lagrange_cubic, lookup, lookup_arrays
 from rubcosim.components.parameters import ParameterError
 from rubcosim.components.rotor import free_whirl, jeffcott_force
 from rubcosim.components.stator import penalty_contact_force, rigid_impact

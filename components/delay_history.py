@@ -1,0 +1,139 @@
+"""The delayed-feedback controller's history: interpolation of its samples at a past time.
+
+The controller (:mod:`.controller_unit`, and its compiled form on a buffer,
+:mod:`.flat_controller`) keeps the fed-back signal as rows ``(t, zx, zy, Sx, Sy)``
+taken at the communication points.  :func:`lookup` evaluates the signal and the ETDAS
+filter at a time ``tq`` by cubic Lagrange interpolation through the four samples around
+it, each within its own continuous pieces (two samples at one time mark a jump).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .jit import USE_NUMBA, njit
+
+
+@njit
+def _search(samples, rows, lo, hi, tq, left):  # pragma: no cover - compiled
+    """numpy's ``searchsorted`` of ``tq`` among the times of ``rows[lo:hi]`` (an index
+    into ``rows``): the first position whose time is >= ``tq`` (``left``) or > ``tq``."""
+    while lo < hi:
+        mid = (lo + hi) // 2
+        t = samples[rows[mid], 0]
+        if t < tq or (not left and t == tq):
+            lo = mid + 1
+        else:
+            hi = mid
+    return lo
+
+
+@njit
+def _interpolate_rows(samples, rows, m, tq, left, c0, out, o):  # pragma: no cover - compiled
+    """Columns ``c0``, ``c0 + 1`` of the sequence ``samples[rows[:m]]`` at ``tq``, into
+    ``out[o]``, ``out[o + 1]``: cubic Lagrange through the four rows around it, within the
+    continuous piece holding ``tq`` (two rows at one time mark a jump: at that time
+    ``left`` takes the piece ending there, the left limit); the first row before the
+    first time."""
+    t0 = samples[rows[0], 0]
+    if tq < t0 or (tq == t0 and (left or m == 1 or samples[rows[1], 0] != t0)):
+        out[o] = samples[rows[0], c0]
+        out[o + 1] = samples[rows[0], c0 + 1]
+        return
+    pos = _search(samples, rows, 0, m, tq, left)
+    start, stop = 0, m  # the piece: from the last jump at or before pos to the next one
+    for k in range(min(pos, m - 1), 0, -1):
+        if samples[rows[k], 0] == samples[rows[k - 1], 0]:
+            start = k
+            break
+    for k in range(pos + 1, m):
+        if samples[rows[k], 0] == samples[rows[k - 1], 0]:
+            stop = k
+            break
+    i = _search(samples, rows, start, stop, tq, True) - start
+    first = start + max(min(i - 2, stop - start - 4), 0)
+    last = min(first + 4, stop)
+    a0, a1 = 0.0, 0.0
+    for p in range(first, last):
+        w = 1.0
+        tp = samples[rows[p], 0]
+        for q in range(first, last):
+            if q != p:
+                tq_ = samples[rows[q], 0]
+                w *= (tq - tq_) / (tp - tq_)
+        a0 += w * samples[rows[p], c0]
+        a1 += w * samples[rows[p], c0 + 1]
+    out[o] = a0
+    out[o + 1] = a1
+
+
+@njit
+def _lookup(samples, tq, left, out):  # pragma: no cover - compiled
+    n = samples.shape[0]
+    rows = np.empty(n, dtype=np.int64)
+    m = 0
+    for r in range(n):  # the signal: without the second row of a jump of the filter alone
+        same_z = samples[r, 1] == samples[r - 1, 1] and samples[r, 2] == samples[r - 1, 2]
+        if r > 0 and samples[r, 0] == samples[r - 1, 0] and same_z:
+            continue
+        rows[m] = r
+        m += 1
+    _interpolate_rows(samples, rows, m, tq, left, 1, out, 0)
+    for r in range(n):
+        rows[r] = r
+    _interpolate_rows(samples, rows, n, tq, left, 3, out, 2)
+
+
+def lagrange_cubic(ts: np.ndarray, zs: np.ndarray, tq: float) -> np.ndarray:
+    """Interpolate rows ``zs`` given at times ``ts`` (up to 4) at ``tq``."""
+    out = np.zeros(zs.shape[1])
+    for i in range(ts.size):
+        w = 1.0
+        for j in range(ts.size):
+            if j != i:
+                w *= (tq - ts[j]) / (ts[i] - ts[j])
+        out += w * zs[i]
+    return out
+
+
+def _interpolate_arrays(samples: np.ndarray, tq: float, side: str) -> np.ndarray:
+    """:func:`_interpolate_rows` of every row, by array operations."""
+    ts = samples[:, 0]
+    if tq < ts[0] or (tq == ts[0] and (side == "left" or ts.size == 1 or ts[1] != ts[0])):
+        return samples[0, 1:]
+    jumps = np.flatnonzero(ts[1:] == ts[:-1]) + 1
+    k = int(np.searchsorted(jumps, int(np.searchsorted(ts, tq, side=side)), side="right"))
+    start = jumps[k - 1] if k > 0 else 0
+    stop = jumps[k] if k < jumps.size else ts.size
+    piece = samples[start:stop]
+    i = int(np.searchsorted(piece[:, 0], tq))
+    lo = max(min(i - 2, piece.shape[0] - 4), 0)
+    window = piece[lo : lo + 4]
+    return lagrange_cubic(window[:, 0], window[:, 1:], tq)
+
+
+def lookup_arrays(samples: np.ndarray, tq: float, side: str = "right") -> np.ndarray:
+    """:func:`lookup` by array operations: a dozen numpy calls whatever the history's
+    length, where the compiled loops would be hundreds of Python steps (an FMU's plain
+    Python).  The two agree bit for bit (``tests/test_units.py``)."""
+    ts = samples[:, 0]
+    same_z = np.zeros(ts.size, dtype=bool)
+    same_z[1:] = (ts[1:] == ts[:-1]) & np.all(samples[1:, 1:3] == samples[:-1, 1:3], axis=1)
+    z = _interpolate_arrays(samples[~same_z][:, :3], tq, side)
+    return np.concatenate((z, _interpolate_arrays(samples[:, [0, 3, 4]], tq, side)))
+
+
+def lookup(samples: np.ndarray, tq: float, side: str = "right") -> np.ndarray:
+    """``(zx, zy, Sx, Sy)`` at ``tq`` from rows ``(t, zx, zy, Sx, Sy)``: the signal and
+    the filter each interpolated within its own continuous pieces (cubic Lagrange
+    through the four samples around ``tq``; two samples at one time mark a jump, and at
+    that time ``side="left"`` takes the left limit; a jump of the filter alone leaves
+    z continuous: its two samples agree in z and split no z stencil); the first sample
+    before the first time.  Compiled where numba runs (the history holds hundreds of
+    rows and the output is looked up at every macro step), by array operations in an
+    FMU's plain Python (:func:`lookup_arrays`)."""
+    if not USE_NUMBA:
+        return lookup_arrays(samples, tq, side)
+    out = np.empty(4)
+    _lookup(np.ascontiguousarray(samples, dtype=np.float64), float(tq), side == "left", out)
+    return out
