@@ -1,7 +1,7 @@
 """Work-precision benchmark of the co-simulation against the monolithic engines.
 
-For three rotor scenarios (rigid stator, elastic stator on a casing, oil-film
-bearing with rub) it measures the error on the rotor displacement and the
+For four rotor scenarios (rigid stator, elastic stator on a casing, oil-film
+bearing with rub, offset rigid stator with delayed velocity feedback) it measures the error on the rotor displacement and the
 wall time of:
 
 * ``accurate`` and ``fast``: the monolithic engines, rtol scanned in half decades;
@@ -64,6 +64,7 @@ CASES = {
     "rigid": "jeffcott_rigid_stator.toml",
     "casing": "jeffcott_elastic_casing.toml",
     "oilfilm": "two_mass_oilfilm_rub.toml",
+    "controller": "jeffcott_delayed_feedback.toml",
 }
 POSITIONS = ("rotor.x", "rotor.y")
 REFERENCE_RTOL = 1e-12
