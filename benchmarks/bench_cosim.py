@@ -1,8 +1,8 @@
 """Work-precision benchmark of the co-simulation against the monolithic engines.
 
 For four rotor scenarios (rigid stator, elastic stator on a casing, oil-film
-bearing with rub, offset rigid stator with delayed velocity feedback) it measures the error on the rotor displacement and the
-wall time of:
+bearing with rub, offset rigid stator with delayed velocity feedback) it measures
+the error on the rotor displacement and the wall time of:
 
 * ``accurate`` and ``fast``: the monolithic engines, rtol scanned in half decades;
 * ``adaptive+events (compiled)``, ``adaptive+events (python)`` and

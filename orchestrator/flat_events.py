@@ -50,6 +50,7 @@ from .flat_layout import (
     F_PERIOD,
     F_T_TOL,
     FAIL_EVENTS,
+    I_CONTROLLERS,
     I_EVENTS,
     I_MAX_EVENTS,
     MS_ERR_PREV,
@@ -289,14 +290,22 @@ def overdue(G, S, p):
 
 
 @njit
+def _left_limits(G, S):
+    """Each controller records the left limit of its inputs (a zero-length step on the
+    pre-event inputs): the jump the event makes stays a jump in its history.  Apart, so
+    that a graph without controllers does not carry it."""
+    for k in range(G.kind.shape[0]):
+        if G.ctl[k] >= 0 and unit_step(G, S, k, S.ms[MS_TIME], 0.0):
+            return 1
+    return 0
+
+
+@njit
 def event(G, S, kind, p):
     """Handle an event of ``kind`` from protocol ``p`` (``_event``): the protocol acts,
     the event is recorded, the inputs settle and the extrapolation restarts."""
-    for k in range(G.kind.shape[0]):
-        # a controller records the left limit of its inputs first (a zero-length step
-        # on the pre-event inputs): the jump the event makes stays a jump in its history
-        if G.ctl[k] >= 0 and unit_step(G, S, k, S.ms[MS_TIME], 0.0):
-            return 1
+    if G.iset[I_CONTROLLERS] and _left_limits(G, S):
+        return 1
     status = 0
     if G.pr_kind[p] == PR_RIGID:
         if kind == EV_IMPACT:

@@ -50,6 +50,7 @@ from .flat_layout import (
     FI_TIME,
     FI_VALUE,
     I_ADAPTIVE,
+    I_CONTROLLERS,
     I_EVENTS,
     I_ITERATIONS,
     I_PI_ORDER,
@@ -78,7 +79,7 @@ from .flat_round import fail, settle, step, unit_outputs
 EVENT_ROOM = 16  # free event slots a loop pass needs
 
 
-@njit(inline="always")
+@njit
 def controller_room(G, S):
     """Whether every controller's buffer has the rows a loop pass may write: a step and
     the left-limit steps of the events after it (each at most ``2 N_FOUND + 1`` rows),
@@ -141,11 +142,19 @@ def _copy(G, S, save):
     else:
         S.scale[:] = S.ck_scale
         S.ms[:MS_SAVED] = S.ck_ms
+    if G.iset[I_CONTROLLERS]:
+        _copy_histories(G, S, save)
+
+
+@njit
+def _copy_histories(G, S, save):
+    """The controllers' histories into the checkpoint's buffers (``save``; each to the
+    front, its bounds there 0, n) or back from them."""
     for k in range(G.kind.shape[0]):
         c = G.ctl[k]
         if c < 0:
             continue
-        if save:  # the history's rows, to the front of the copy (its bounds: 0, n)
+        if save:
             a, b = int(S.ust[k, Y]), int(S.ust[k, Y + 1])
             S.ck_cbuf[c, : b - a] = S.cbuf[c, a:b]
             S.ck_ust[k, Y], S.ck_ust[k, Y + 1] = 0.0, float(b - a)
@@ -213,6 +222,7 @@ def run_loop(G, S, max_steps):  # noqa: C901 - one loop, as the Python master's
     min_step, max_step = G.fset[F_MIN_STEP], G.fset[F_MAX_STEP]
     t_end = G.fset[F_T_END]
     order = G.iset[I_PI_ORDER]
+    controllers = G.iset[I_CONTROLLERS] > 0
     inds = np.zeros((MAX_INDICATORS, 6), dtype=np.int64)
     bef = np.zeros((MAX_INDICATORS, 2))
     if S.ms[MS_STARTED] == 0.0:
@@ -223,7 +233,9 @@ def run_loop(G, S, max_steps):  # noqa: C901 - one loop, as the Python master's
     while S.ms[MS_TIME] < t_end:
         if passes >= max_steps:
             return PAUSED
-        if S.ev_t.shape[0] - int(S.ms[MS_N_EVENTS]) < EVENT_ROOM or not controller_room(G, S):
+        if S.ev_t.shape[0] - int(S.ms[MS_N_EVENTS]) < EVENT_ROOM:
+            return NEED_ROOM
+        if controllers and not controller_room(G, S):
             return NEED_ROOM
         passes += 1
         t = S.ms[MS_TIME]

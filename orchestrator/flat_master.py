@@ -132,7 +132,8 @@ def _graph(master: Any, t_end: float, times: np.ndarray, record: list[tuple[str,
         out_times=np.asarray(times, dtype=float),
         model=tuple(np.ascontiguousarray(m) for m in model),
         iset=np.array([st.algorithm == "gauss-seidel", st.adaptive, st.iterations,
-                       events[st.events], st.max_events_per_period, p_order + 1], np.int64),
+                       events[st.events], st.max_events_per_period, p_order + 1,
+                       np.count_nonzero(is_ctl)], np.int64),
         fset=np.array([st.rtol, st.iteration_tol, st.min_step, st.max_step, master.t_tol,
                        master.period, t_end]),
         omap=omap, mval=mval, ctl=ctl,
@@ -261,12 +262,14 @@ def run_flat(
     rec = [tuple(n.split(".", 1)) for n in record]
     G = _graph(master, float(t_end), np.asarray(output_times, dtype=float), rec)
     S = _state(master, G, float(t_start))
-    code = L.FAILED if start(G, S) else L.RUNNING
+    graph, ref = L.graph_ref(G), L.state_ref(S)
+    code = L.FAILED if start(graph, ref) else L.RUNNING
     with watch("co-simulation", t_start, t_end, lambda: S.ms[L.MS_TIME], enabled=progress):
         while code != L.FAILED:
-            code = run_loop(G, S, CHUNK)
+            code = run_loop(graph, ref, CHUNK)
             if code == L.NEED_ROOM:
                 S = _grow(S)
+                ref = L.state_ref(S)
             elif code == L.DONE:
                 break
     n = int(S.ms[L.MS_K_OUT])

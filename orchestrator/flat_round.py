@@ -42,13 +42,14 @@ def fail(S, code, unit, detail):
 @njit(inline="always")
 def unit_outputs(G, S, k):
     """Refresh the master's copy of unit ``k``'s outputs (``get_outputs``)."""
-    if G.kind[k] == K_HYBRID:
+    kind = G.kind[k]
+    if kind < K_HYBRID:  # the rotors, stators and bearings first: the most common
+        status = outputs(kind, G.p[k], S.ust[k], S.out[k])
+    elif kind == K_HYBRID:
         status = hybrid_outputs(G.ny[k], G.node[k], G.nout[k], G.ode_idx[k, : G.node[k]],
                                 G.omap[k], G.mval[k], G.p[k], S.ust[k], S.out[k])  # fmt: skip
-    elif G.kind[k] == K_CONTROLLER:
+    else:  # K_CONTROLLER
         status = row_outputs(G.p[k], S.ust[k], S.cbuf[G.ctl[k]], S.cscr, S.out[k])
-    else:
-        status = outputs(G.kind[k], G.p[k], S.ust[k], S.out[k])
     if status != STEP_OK:
         return fail(S, FAIL_OUTPUT, k, status)
     return 0
@@ -56,12 +57,12 @@ def unit_outputs(G, S, k):
 
 @njit(inline="always")
 def unit_step(G, S, k, t, h):
-    if G.kind[k] == K_CONTROLLER:
-        status = row_step(G.p[k], S.ust[k], S.cbuf[G.ctl[k]], S.cscr, t, h)
-    else:
+    if G.kind[k] != K_CONTROLLER:
         idx = G.ode_idx[k, : G.node[k]]
         status = do_step(G.kind[k], G.ode[k], G.exact[k], G.ny[k], G.nin[k], idx, G.p[k],
                          G.tol[k], G.model, S.ust[k], t, h)  # fmt: skip
+    else:
+        status = row_step(G.p[k], S.ust[k], S.cbuf[G.ctl[k]], S.cscr, t, h)
     if status != STEP_OK:
         return fail(S, FAIL_STEP, k, status)
     return 0
