@@ -262,14 +262,14 @@ def run_flat(
     rec = [tuple(n.split(".", 1)) for n in record]
     G = _graph(master, float(t_end), np.asarray(output_times, dtype=float), rec)
     S = _state(master, G, float(t_start))
-    graph, ref = L.graph_ref(G), L.state_ref(S)
+    graph, ref = L.refs(G, S)
     code = L.FAILED if start(graph, ref) else L.RUNNING
     with watch("co-simulation", t_start, t_end, lambda: S.ms[L.MS_TIME], enabled=progress):
         while code != L.FAILED:
             code = run_loop(graph, ref, CHUNK)
             if code == L.NEED_ROOM:
                 S = _grow(S)
-                ref = L.state_ref(S)
+                _, ref = L.refs(G, S)
             elif code == L.DONE:
                 break
     n = int(S.ms[L.MS_K_OUT])
