@@ -29,7 +29,7 @@ from .controller import (
     switch_interval,
 )
 from .declaration import Derived, FmuIdentity, Need, UnitType, Wire
-from .delay_history import lookup
+from .delay_history import FILTER_PAIR, ROW, SAMPLE, lookup
 from .parameters import nonnegative
 from .unit import Unit, planar_motion, real_signal
 
@@ -65,7 +65,7 @@ class DelayedFeedbackUnit(Unit):
     def _initial_state(self) -> dict[str, Any]:
         # rows (t, zx, zy, Sx, Sy); empty until the first step records a sample, whose
         # time is "start": the constant initial function meets the signal there with a kink
-        return {"history": np.zeros((0, 5)), "start": math.nan}
+        return {"history": np.zeros((0, ROW)), "start": math.nan}
 
     def _signal(self) -> tuple[float, float]:
         if self.params["feedback"] == "position":
@@ -122,14 +122,14 @@ class DelayedFeedbackUnit(Unit):
             m += 1.0
         rows: list[list[float]] = []
         zx, zy = self._signal()
-        current = [[t, zx, zy, np.nan, np.nan]]  # z at t: the stencil's right end
+        current = [[t, zx, zy, np.nan, np.nan, SAMPLE]]  # z at t: the stencil's right end
         for s, tq_left, tq_right, side in sorted(found):
             known = np.vstack((hist, rows)) if rows else hist
             z = lookup(np.vstack((known, current)), s)
             left = self._filter(known, s, tq_left, side)
             right = self._filter(known, s, tq_right, "right")
-            rows += [[s, z[0], z[1], *left], [s, z[0], z[1], *right]]
-        return np.array(rows).reshape(-1, 5)
+            rows += [[s, z[0], z[1], *left, FILTER_PAIR], [s, z[0], z[1], *right, FILTER_PAIR]]
+        return np.array(rows).reshape(-1, ROW)
 
     def _advance(self, t: float, h: float) -> None:
         hist = self.state["history"]
@@ -137,8 +137,16 @@ class DelayedFeedbackUnit(Unit):
         if hist.shape[0] and hist[-1, 0] > t:
             hist = hist[hist[:, 0] <= t]  # stepped again from an earlier time: forget the future
         # Two samples at one time mark a jump: a zero-length step recorded the signal just
-        # before an impact reset it.  Both stay, and no interpolation stencil spans them.
-        if hist.shape[0] and hist[-1, 0] == t and hist[-1, 1] == zx and hist[-1, 2] == zy:
+        # before an impact reset it.  Both stay, and no interpolation stencil spans them;
+        # equal ones mark a kink (a position fed back, whose velocity the impact reset).
+        # A third sample at that time (events at one time) replaces the second.
+        if (
+            hist.shape[0] > 1
+            and hist[-2, 0] == t
+            and hist[-1, 0] == t
+            and hist[-1, 1] == zx
+            and hist[-1, 2] == zy
+        ):
             hist = hist[:-1]
         if math.isnan(self.state["start"]):
             self.state["start"] = t
@@ -154,7 +162,7 @@ class DelayedFeedbackUnit(Unit):
         first = max(int(np.searchsorted(hist[:, 0], keep)) - 3, 0)
         if 0 < first < hist.shape[0] and hist[first, 0] == hist[first - 1, 0]:
             first -= 1  # never split the two samples of a jump
-        self.state["history"] = np.vstack((hist[first:], [[t, zx, zy, sx, sy]]))
+        self.state["history"] = np.vstack((hist[first:], [[t, zx, zy, sx, sy, SAMPLE]]))
 
     def _delayed(self, tq: float) -> tuple[float, float]:
         """The fed-back delayed signal: z(tq) (Pyragas) or (1 - R) z(tq) + R S(tq)."""
@@ -162,7 +170,7 @@ class DelayedFeedbackUnit(Unit):
         before = hist[hist[:, 0] < self.time]
         zx, zy = self._signal()
         sx, sy = (zx, zy) if self.params["memory"] == 0.0 else self._filter(before, self.time)
-        v = lookup(np.vstack((before, [[self.time, zx, zy, sx, sy]])), tq)
+        v = lookup(np.vstack((before, [[self.time, zx, zy, sx, sy, SAMPLE]])), tq)
         memory = self.params["memory"]
         return etdas_blend(memory, v[0], v[2]), etdas_blend(memory, v[1], v[3])
 

@@ -13,6 +13,11 @@ import numpy as np
 
 from .jit import USE_NUMBA, njit
 
+# a history row: (t, zx, zy, Sx, Sy, kind); kind: a sample of the signal (a step's, or
+# its left limit at an event), or one of the pair that marks a jump or kink of S alone
+ROW = 6
+SAMPLE, FILTER_PAIR = 0.0, 1.0
+
 
 @njit
 def _search(samples, rows, lo, hi, tq, left):  # pragma: no cover - compiled
@@ -74,7 +79,8 @@ def _lookup(samples, tq, left, out):  # pragma: no cover - compiled
     m = 0
     for r in range(n):  # the signal: without the second row of a jump of the filter alone
         same_z = samples[r, 1] == samples[r - 1, 1] and samples[r, 2] == samples[r - 1, 2]
-        if r > 0 and samples[r, 0] == samples[r - 1, 0] and same_z:
+        s_only = samples.shape[1] <= 5 or samples[r, 5] == FILTER_PAIR
+        if r > 0 and samples[r, 0] == samples[r - 1, 0] and same_z and s_only:
             continue
         rows[m] = r
         m += 1
@@ -119,6 +125,8 @@ def lookup_arrays(samples: np.ndarray, tq: float, side: str = "right") -> np.nda
     ts = samples[:, 0]
     same_z = np.zeros(ts.size, dtype=bool)
     same_z[1:] = (ts[1:] == ts[:-1]) & np.all(samples[1:, 1:3] == samples[:-1, 1:3], axis=1)
+    if samples.shape[1] > 5:  # the second sample of an event's pair splits z (its kink)
+        same_z &= samples[:, 5] == FILTER_PAIR
     z = _interpolate_arrays(samples[~same_z][:, :3], tq, side)
     return np.concatenate((z, _interpolate_arrays(samples[:, [0, 3, 4]], tq, side)))
 
@@ -126,12 +134,14 @@ def lookup_arrays(samples: np.ndarray, tq: float, side: str = "right") -> np.nda
 def lookup(samples: np.ndarray, tq: float, side: str = "right") -> np.ndarray:
     """``(zx, zy, Sx, Sy)`` at ``tq`` from rows ``(t, zx, zy, Sx, Sy)``: the signal and
     the filter each interpolated within its own continuous pieces (cubic Lagrange
-    through the four samples around ``tq``; two samples at one time mark a jump, and at
-    that time ``side="left"`` takes the left limit; a jump of the filter alone leaves
-    z continuous: its two samples agree in z and split no z stencil); the first sample
-    before the first time.  Compiled where numba runs (the history holds hundreds of
-    rows and the output is looked up at every macro step), by array operations in an
-    FMU's plain Python (:func:`lookup_arrays`)."""
+    through the four samples around ``tq``; two samples at one time mark a jump, or a
+    kink when they are equal (an event that left a fed-back position continuous and
+    reset its slope), and at that time ``side="left"`` takes the left limit; a jump or
+    kink of the filter alone (a pair of kind ``FILTER_PAIR``) leaves z continuous and
+    splits no z stencil); the first sample before the first time.  Without the kind
+    column, a pair that agrees in z is taken for one of S alone.  Compiled where numba
+    runs (the history holds hundreds of rows and the output is looked up at every
+    macro step), by array operations in an FMU's plain Python (:func:`lookup_arrays`)."""
     if not USE_NUMBA:
         return lookup_arrays(samples, tq, side)
     out = np.empty(4)

@@ -2,11 +2,11 @@
 
 :class:`.controller_unit.DelayedFeedbackUnit` keeps its history as a numpy array that
 each step replaces (``np.vstack``); a compiled master cannot.  Here the same history
-lives in rows ``a .. b - 1`` of a fixed buffer ``buf`` (columns ``t, zx, zy, Sx, Sy``),
-with ``cs = [a, b, start]``:
+lives in rows ``a .. b - 1`` of a fixed buffer ``buf`` (the unit's rows,
+:mod:`.delay_history`), with ``cs = [a, b, start]``:
 
-* a step only writes at ``b`` and after (it may drop its last row and write it again,
-  identically: the left limit recorded at the same time from the same samples), and the
+* a step only writes at ``b`` and after (it may drop its last row, the second of two
+  equal ones at its time, and write it again identically), and the
   front is dropped by moving ``a``; so restoring ``cs`` restores the history, which is
   how a master rolls a step back;
 * :func:`make_room` moves the rows to the front when the buffer fills (only where no
@@ -39,7 +39,7 @@ from .controller import (
     piece_index,
     switch_interval,
 )
-from .delay_history import _lookup
+from .delay_history import FILTER_PAIR, SAMPLE, _lookup
 from .flat_rows import STEP_BAD_INPUT, STEP_NO_ROOM, STEP_NOT_FINITE, STEP_OK, T, U, Y
 from .jit import njit
 
@@ -191,15 +191,15 @@ def _filter_jumps(p, buf, a, m, b, start, t, zx, zy, scratch):  # pragma: no cov
         s, tq_left, tq_right, side = found[i, 0], found[i, 1], found[i, 2], found[i, 3]
         k = _gather(buf, a, m, b, r, scratch)
         scratch[k, 0], scratch[k, 1], scratch[k, 2] = t, zx, zy
-        scratch[k, 3], scratch[k, 4] = math.nan, math.nan
+        scratch[k, 3], scratch[k, 4], scratch[k, 5] = math.nan, math.nan, SAMPLE
         _lookup(scratch[: k + 1], s, False, out)
         z0, z1 = out[0], out[1]
         lx, ly = _filter(p, scratch, k, tq_left, side == 0.0, zx, zy, out)
         rx, ry = _filter(p, scratch, k, tq_right, False, zx, zy, out)
         buf[b + r, 0], buf[b + r, 1], buf[b + r, 2] = s, z0, z1
-        buf[b + r, 3], buf[b + r, 4] = lx, ly
+        buf[b + r, 3], buf[b + r, 4], buf[b + r, 5] = lx, ly, FILTER_PAIR
         buf[b + r + 1, 0], buf[b + r + 1, 1], buf[b + r + 1, 2] = s, z0, z1
-        buf[b + r + 1, 3], buf[b + r + 1, 4] = rx, ry
+        buf[b + r + 1, 3], buf[b + r + 1, 4], buf[b + r + 1, 5] = rx, ry, FILTER_PAIR
         r += 2
     return r
 
@@ -220,8 +220,14 @@ def controller_step(p, cs, buf, scratch, x, y, vx, vy, t):  # pragma: no cover -
     zx, zy = _signal(p, x, y, vx, vy)
     while b > a and buf[b - 1, 0] > t:  # stepped again from an earlier time
         b -= 1
-    if b > a and buf[b - 1, 0] == t and buf[b - 1, 1] == zx and buf[b - 1, 2] == zy:
-        b -= 1
+    if (
+        b > a + 1
+        and buf[b - 2, 0] == t
+        and buf[b - 1, 0] == t
+        and buf[b - 1, 1] == zx
+        and buf[b - 1, 2] == zy
+    ):
+        b -= 1  # a third sample at one time replaces the second (see the unit's _advance)
     if math.isnan(start):
         start = t
     if p[C_MEMORY] == 0.0:
@@ -256,6 +262,7 @@ def controller_step(p, cs, buf, scratch, x, y, vx, vy, t):  # pragma: no cover -
     if b >= buf.shape[0]:
         return FULL
     buf[b, 0], buf[b, 1], buf[b, 2], buf[b, 3], buf[b, 4] = t, zx, zy, sx, sy
+    buf[b, 5] = SAMPLE
     cs[0], cs[1], cs[2] = a, b + 1, start
     return OK
 
@@ -284,7 +291,7 @@ def controller_outputs(p, cs, buf, scratch, x, y, vx, vy, t, out):  # pragma: no
         else:
             sx, sy = _filter(p, scratch, k, t - _delay(p, t), False, zx, zy, v)
         scratch[k, 0], scratch[k, 1], scratch[k, 2] = t, zx, zy
-        scratch[k, 3], scratch[k, 4] = sx, sy
+        scratch[k, 3], scratch[k, 4], scratch[k, 5] = sx, sy, SAMPLE
         _lookup(scratch[: k + 1], tq, False, v)
     memory = p[C_MEMORY]
     dx, dy = etdas_blend(memory, v[0], v[2]), etdas_blend(memory, v[1], v[3])

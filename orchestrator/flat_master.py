@@ -23,6 +23,7 @@ from typing import Any
 import numpy as np
 
 from rubcosim.components import flat_units as fu
+from rubcosim.components.delay_history import ROW
 from rubcosim.components.flat_hybrid import MAX_MODES, output_map
 from rubcosim.components.unit import Unit
 from rubcosim.progress import watch
@@ -180,12 +181,12 @@ def _histories(master: Any, G: L.FlatGraph, ust: np.ndarray) -> tuple[np.ndarray
     ks = [k for k in range(len(units)) if G.ctl[k] >= 0]
     longest = max((len(units[k].state["history"]) for k in ks), default=0)
     cap = max(HISTORY_ROWS, 2 * longest) if ks else 1
-    cbuf = np.zeros((max(len(ks), 1), cap, 5))
+    cbuf = np.zeros((max(len(ks), 1), cap, ROW))
     for k in ks:
         hist = units[k].state["history"]
         cbuf[G.ctl[k], : len(hist)] = hist
         ust[k, fu.Y : fu.Y + 3] = 0.0, len(hist), units[k].state["start"]
-    return cbuf, np.zeros((cap + 1, 5))
+    return cbuf, np.zeros((cap + 1, ROW))
 
 
 def _grow(S: L.FlatState) -> L.FlatState:
@@ -199,11 +200,11 @@ def _grow(S: L.FlatState) -> L.FlatState:
             ev_unit=np.concatenate([S.ev_unit, np.zeros(n, np.int64)]),
         )
     n_ctl, cap, _ = S.cbuf.shape
-    cbuf = np.zeros((n_ctl, 2 * cap, 5))
+    cbuf = np.zeros((n_ctl, 2 * cap, ROW))
     cbuf[:, :cap] = S.cbuf
     kept = np.zeros_like(cbuf)
     kept[:, :cap] = S.ck_cbuf
-    return S._replace(cbuf=cbuf, cscr=np.zeros((2 * cap + 1, 5)), ck_cbuf=kept)
+    return S._replace(cbuf=cbuf, cscr=np.zeros((2 * cap + 1, ROW)), ck_cbuf=kept)
 
 
 def _message(master: Any, G: L.FlatGraph, S: L.FlatState) -> str:

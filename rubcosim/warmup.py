@@ -47,7 +47,7 @@ def _controller_kernels() -> None:
 
     unit = make_unit("controller", "delayed_feedback", gain=1.0, delay=1e-3, memory=0.5, speed=0.0)
     p = controller_params(unit.params)
-    cs, buf, scratch = np.array([0.0, 0.0, np.nan]), np.zeros((8, 5)), np.zeros((9, 5))
+    cs, buf, scratch = np.array([0.0, 0.0, np.nan]), np.zeros((8, 6)), np.zeros((9, 6))
     controller_step(p, cs, buf, scratch, 0.0, 0.0, 0.0, 0.0, 0.0)
     controller_outputs(p, cs, buf, scratch, 0.0, 0.0, 0.0, 0.0, 0.0, np.empty(3))
     make_room(cs, buf, 1)

@@ -53,8 +53,8 @@ class Kernel:
     def __init__(self, params: dict, rows: int = 4096) -> None:
         self.p = controller_params(params)
         self.cs = np.array([0.0, 0.0, math.nan])
-        self.buf = np.zeros((rows, 5))
-        self.scratch = np.zeros((rows + 1, 5))
+        self.buf = np.zeros((rows, 6))
+        self.scratch = np.zeros((rows + 1, 6))
         self.u = dict.fromkeys(("x", "y", "vx", "vy"), 0.0)
 
     def step(self, t: float) -> int:

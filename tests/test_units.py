@@ -12,7 +12,13 @@ from rubcosim.components import jit, unit_odes
 from rubcosim.components.bearing import oilfilm_force, oilfilm_sigma
 from rubcosim.components.catalog import UNIT_TYPES
 from rubcosim.components.controller import base_delay
-from rubcosim.components.delay_history import lagrange_cubic, lookup, lookup_arrays
+from rubcosim.components.delay_history import (
+    FILTER_PAIR,
+    SAMPLE,
+    lagrange_cubic,
+    lookup,
+    lookup_arrays,
+)
 from rubcosim.components.parameters import ParameterError
 from rubcosim.components.rotor import free_whirl, jeffcott_force
 from rubcosim.components.stator import penalty_contact_force, rigid_impact
@@ -318,6 +324,22 @@ def test_lagrange_cubic_is_exact_for_cubics():
     assert lagrange_cubic(ts, zs, 0.5) == pytest.approx([0.125 - 0.5, 1.0])
 
 
+def test_an_equal_pair_of_samples_is_a_kink_of_z_that_no_stencil_spans():
+    # z = |t - 0.5| (a fed-back position whose velocity an impact reversed at 0.5): with
+    # the event's two equal samples there, each side is a line, interpolated exactly;
+    # the same pair marked as one of the filter alone leaves z's stencils across the kink
+    ts = np.array([0.0, 0.15, 0.3, 0.42, 0.5, 0.5, 0.61, 0.7, 0.85, 1.0])
+    z = np.abs(ts - 0.5)
+    rows = np.stack([ts, z, 2 * z, ts, ts, np.full(ts.size, SAMPLE)], axis=1)
+    for tq in (0.35, 0.45, 0.48, 0.52, 0.58, 0.65):
+        want = abs(tq - 0.5)
+        for got in (lookup(rows, tq), lookup_arrays(rows, tq)):
+            assert got[:2] == pytest.approx([want, 2 * want], rel=1e-12)
+    spanned = rows.copy()
+    spanned[4:6, 5] = FILTER_PAIR
+    assert abs(lookup(spanned, 0.45)[0] - 0.05) > 1e-3
+
+
 def test_history_lookup_is_exact_for_cubics_and_takes_each_side_of_a_jump():
     # z = t^3 - t and S = 2 t sampled unevenly: cubic Lagrange reproduces them exactly
     ts = np.array([0.0, 0.1, 0.3, 0.45, 0.7, 1.0, 1.2])
@@ -336,21 +358,28 @@ def test_history_lookup_is_exact_for_cubics_and_takes_each_side_of_a_jump():
 def test_compiled_history_lookup_agrees_with_array_operations_bit_for_bit(seed):
     # random histories with jumps of both signals and of the filter alone, queried at,
     # between and beyond the samples, on both sides
+    # (a pair of the filter alone, a jump of the signal, an equal pair: a kink), with and
+    # without the rows' kind column
     rng = np.random.default_rng(seed)
     n = int(rng.integers(1, 40))
     ts = np.sort(rng.uniform(0.0, 1.0, n))
-    rows = np.column_stack((ts, rng.normal(size=(n, 4))))
-    for _ in range(int(rng.integers(0, 5))):
+    rows = np.column_stack((ts, rng.normal(size=(n, 4)), np.full(n, SAMPLE)))
+    for _ in range(int(rng.integers(0, 6))):
         r = int(rng.integers(0, n))
         extra = rows[r].copy()
-        extra[3:] = rng.normal(size=2)  # the filter jumps ...
-        if rng.random() < 0.5:
-            extra[1:3] = rng.normal(size=2)  # ... and the signal too
+        kind = rng.integers(0, 3)
+        if kind == 0:  # the filter alone jumps
+            extra[3:5] = rng.normal(size=2)
+            rows[r, 5] = extra[5] = FILTER_PAIR
+        elif kind == 1:  # the signal and the filter
+            extra[1:5] = rng.normal(size=4)
         rows = np.insert(rows, r + 1, extra, axis=0)
     queries = np.concatenate((rows[:, 0], rng.uniform(-0.1, 1.1, 20)))
-    for tq in queries:
-        for side in ("left", "right"):
-            assert np.array_equal(lookup(rows, tq, side), lookup_arrays(rows, tq, side))
+    for samples in (rows, rows[:, :5]):
+        for tq in queries:
+            for side in ("left", "right"):
+                got = lookup(samples, tq, side)
+                assert np.array_equal(got, lookup_arrays(samples, tq, side))
 
 
 def _reference_oscillator(params: dict, times: np.ndarray) -> np.ndarray:
