@@ -297,7 +297,7 @@ def test_rub_impact_under_extended_and_variable_feedback_agrees_between_engines(
 def test_cosimulation_of_position_feedback_through_impacts_matches_the_reference():
     # a fed-back position keeps its value at an impact and reverses its slope: the unit
     # records the event's two equal samples, and no stencil spans that kink (spanning it
-    # cost 0.6 % of the force and 2.6e-4 of the states; the bounds are the other cases')
+    # cost 0.6 % of the force and 2.6e-4 of the states; the bounds are the other cases)
     given = {"sim.t_end": 0.15, "controller.feedback": "position", "controller.gain": 1e5,
              "controller.memory": 0.4, "controller.t_on": 0.02}  # fmt: skip
     report, _, _, _ = compare(rc.load(SCENARIO, set=given))
