@@ -19,10 +19,10 @@ from typing import Any
 
 import numba as nb
 import numpy as np
-from scipy.spatial import cKDTree
 
 from .cellmap import Grid, sample_cells
 from .maps import StroboscopicMap, admissible
+from .sample_index import SampleIndex
 
 SINK = -1  # successor of a sample whose image leaves the region or whose run failed
 
@@ -43,20 +43,18 @@ def map_samples(
 
 def successors(
     grid: Grid, points: np.ndarray, images: np.ndarray, k: int = 1
-) -> tuple[np.ndarray, np.ndarray, cKDTree]:
+) -> tuple[np.ndarray, np.ndarray, SampleIndex]:
     """Index of the sample point nearest to each image (distances in cell widths, so
     both axes weigh alike), :data:`SINK` for images outside the region or not finite;
     the ``k`` nearest (rows of indices, nearest first; 0 for images outside); the
-    sample points' tree (in cell widths)."""
-    cell_size = np.array([grid.dx, grid.dv])
+    sample points' index (``points``: every cell's samples, in cell order)."""
+    index = SampleIndex(grid, points, points.shape[0] // grid.n_cells)
     inside = grid.cell_of(images) != grid.sink
     nxt = np.full(points.shape[0], SINK, dtype=np.int64)
     near = np.zeros((points.shape[0], k), dtype=np.int64)
-    tree = cKDTree(points / cell_size)
-    _, idx = tree.query(images[inside] / cell_size, k=k, workers=-1)
-    near[inside] = np.asarray(idx).reshape(-1, k)
+    near[inside] = index.query(images[inside], k)
     nxt[inside] = near[inside, 0]
-    return nxt, near, tree
+    return nxt, near, index
 
 
 @nb.njit(cache=True)
@@ -102,16 +100,16 @@ def cycle_members(nxt: np.ndarray, start: int) -> np.ndarray:
 
 def sample_graph(grid: Grid, points: np.ndarray, images: np.ndarray, k: int = 1) -> dict[str, Any]:
     """Successors, the ``k`` samples nearest to each image (``near``), the points'
-    ``tree``, each sample's terminal cycle node (-1: the sink) and the cycles (their
-    nodes, largest drainage first)."""
-    nxt, near, tree = successors(grid, points, images, k)
+    ``index`` (:class:`.sample_index.SampleIndex`), each sample's terminal cycle node
+    (-1: the sink) and the cycles (their nodes, largest drainage first)."""
+    nxt, near, index = successors(grid, points, images, k)
     term = terminal_cycles(nxt)
     heads, drained = np.unique(term[term >= 0], return_counts=True)
     order = np.argsort(-drained, kind="stable")
     return {
         "next": nxt,
         "near": near,
-        "tree": tree,
+        "index": index,
         "terminal": term,
         "cycles": heads[order],
         "drained": drained[order],

@@ -20,6 +20,7 @@ from .maps import StroboscopicMap
 
 RADII = (0.05, 0.01, 2e-3)  # state scales: ball radii tried around a periodic attractor
 CHAOS_SPACING = 3.0  # a non-periodic attractor's ball: this many median point spacings
+FEW_POINTS = 64  # an attractor with no more points than this is tested without a tree
 
 
 def test_steps(scale: np.ndarray, axes: list[int]) -> np.ndarray:
@@ -53,8 +54,19 @@ class StateSpace:
         return self._trees[key][1]
 
     def _near(self, states: np.ndarray, a: Attractor) -> np.ndarray:
-        z = states / self.scale
-        hit = np.zeros(states.shape[0], dtype=bool)
+        return self._near_scaled(states / self.scale, a)
+
+    def _near_scaled(self, z: np.ndarray, a: Attractor) -> np.ndarray:
+        """Whether each state (``z``: in state scales) lies within ``a``'s radius of one
+        of its points (max norm); False for a state that is not finite."""
+        if a.points.shape[0] <= FEW_POINTS:
+            # a periodic orbit's few points: directly (a tree query costs more)
+            hit = np.zeros(z.shape[0], dtype=bool)
+            with np.errstate(invalid="ignore"):
+                for p in a.points / self.scale:
+                    hit |= np.max(np.abs(z - p), axis=1) <= a.radius
+            return hit
+        hit = np.zeros(z.shape[0], dtype=bool)
         finite = np.all(np.isfinite(z), axis=1)
         if np.any(finite):
             # only whether a point lies within the radius matters: the bound prunes the
@@ -67,8 +79,9 @@ class StateSpace:
     def locate(self, states: np.ndarray, known: list[Attractor]) -> np.ndarray:
         """Per state: the first attractor whose ball holds it, else -1."""
         out = np.full(states.shape[0], -1, dtype=np.int64)
+        z = states / self.scale
         for k in range(len(known) - 1, -1, -1):
-            out[self._near(states, known[k])] = k
+            out[self._near_scaled(z, known[k])] = k
         return out
 
     def match(self, smap: StroboscopicMap, motion: dict[str, Any], known: list[Attractor]) -> int:

@@ -38,11 +38,11 @@ from typing import Any
 
 import numba as nb
 import numpy as np
-from scipy.spatial import cKDTree
 
 from .attractors import Attractor, pursue
 from .cellmap import Grid
 from .maps import StroboscopicMap
+from .sample_index import SampleIndex
 from .tie_passes import (
     dependency_order,
     fates_in_order,
@@ -72,7 +72,7 @@ def agreed_fate(near, fate, ok):  # pragma: no cover - compiled
     return out
 
 
-def _decide(space: Any, grid: Grid, tree: cKDTree, y: np.ndarray, fate, ok, known) -> Any:
+def _decide(space: Any, grid: Grid, index: SampleIndex, y: np.ndarray, fate, ok, known) -> Any:
     """Per exact state ``y``: :data:`SINK` outside the region, the attractor whose
     verified neighbourhood holds it, or the fate its ``K_NEAR`` nearest samples (their
     ``fate``, all trusted: ``ok``) share; else -1."""
@@ -84,8 +84,7 @@ def _decide(space: Any, grid: Grid, tree: cKDTree, y: np.ndarray, fate, ok, know
     decided[inside] = hood
     free = inside[hood < 0]
     if free.size:
-        _, near = tree.query(y[free] / np.array([grid.dx, grid.dv]), k=K_NEAR, workers=-1)
-        decided[free] = agreed_fate(np.ascontiguousarray(near), fate, ok)
+        decided[free] = agreed_fate(index.query(y[free], K_NEAR), fate, ok)
     return decided
 
 
@@ -111,7 +110,7 @@ def settle_samples(
 ) -> tuple[np.ndarray, dict[str, Any]]:
     """Every sample's fate (attractor index, ``len(known)`` for the sink) from the
     sample graph ``graph`` (:func:`.sample_graph.sample_graph`, with its ``near``
-    neighbours and ``tree``) and its cycle heads' fates ``heads_fate`` (-1: failed),
+    neighbours and ``index``) and its cycle heads' fates ``heads_fate`` (-1: failed),
     using only trusted ties and tracking the other samples (see the module doc);
     ``space`` holds the verified neighbourhoods (:class:`.state_space.StateSpace`).
     ``mapper(states)``: the one-period images of many states (default ``smap.map``'s).
@@ -121,7 +120,7 @@ def settle_samples(
     mapped one more period; a sample that only inherits distrust from one of them
     becomes trusted as soon as that one is decided, without a map of its own."""
     mapper = mapper or (lambda y: smap.map(y)[0])
-    nxt, near, tree = graph["next"], np.ascontiguousarray(graph["near"]), graph["tree"]
+    nxt, near, index = graph["next"], np.ascontiguousarray(graph["near"]), graph["index"]
     n = points.shape[0]
     anchor = space.locate(points, known)
     heads = graph["cycles"]
@@ -160,7 +159,7 @@ def settle_samples(
             done[roots] += 1
             stats["tracked_periods"] += int(roots.size)
             stats["rounds"] += 1
-        decided = _decide(space, grid, tree, y[roots], fate, ok, known)
+        decided = _decide(space, grid, index, y[roots], fate, ok, known)
         new = roots[decided >= 0]
         anchor[new] = decided[decided >= 0]
         if not np.all(reached[new]):  # an anchor on a cycle that had none: order again
