@@ -70,7 +70,7 @@ class HybridKernels:
         return p
 
 
-@njit
+@njit(inline="always")
 def input_value(p: np.ndarray, base: int, i: int, t: float) -> float:
     """Input ``i`` of a hybrid unit at time ``t`` (s): the polynomial over the current
     step stored from ``p[base]`` on (step start, then value, d1, d2 per input)."""

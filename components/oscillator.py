@@ -51,7 +51,7 @@ STOP_ELASTIC_ONE = 3
 STOP_ELASTIC_TWO = 4
 
 
-@njit
+@njit(inline="always")
 def free_acceleration(
     t: float, x: float, v: float, a: float, b: float, c3: float, f: float, w: float
 ) -> float:
@@ -59,7 +59,7 @@ def free_acceleration(
     return f * math.cos(w * t) - b * v - a * x - c3 * x * x * x
 
 
-@njit
+@njit(inline="always")
 def elastic_stop_force(x: float, kind: int, barrier: float, ks: float) -> float:
     """Restoring force of a piecewise-linear stop, per unit mass."""
     if kind == STOP_ELASTIC_ONE or kind == STOP_ELASTIC_TWO:
@@ -76,7 +76,7 @@ def impact_velocity(v: float, restitution: float) -> float:
     return -restitution * v
 
 
-@njit
+@njit(inline="always")
 def barrier_gap(x: float, barrier: float, side: int) -> float:
     """Distance (m) of the mass at x from the barrier on ``side`` (+1: the barrier at
     +D, -1: at -D), positive while clear: ``D - x`` or ``x + D``."""
@@ -85,7 +85,7 @@ def barrier_gap(x: float, barrier: float, side: int) -> float:
     return x + barrier
 
 
-@njit
+@njit(inline="always")
 def pressing(side: int, acc_at_rest: float) -> float:
     """How hard the mass resting on the barrier on ``side`` is pushed into it: its free
     acceleration there (m/s^2, with zero velocity) along the outward side.  The

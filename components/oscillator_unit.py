@@ -51,20 +51,20 @@ CHATTER_TOL = positive(
 )
 
 
-@njit
+@njit(inline="always")
 def acceleration(t: float, x: float, v: float, p: np.ndarray) -> float:
     """Free acceleration plus the input one (another unit's force per unit mass), m/s^2."""
     acc = free_acceleration(t, x, v, p[A], p[B], p[C3], p[F], p[WF])
     return acc + input_value(p, INPUTS, 0, t)
 
 
-@njit
+@njit(inline="always")
 def resting_acceleration(t: float, side: int, p: np.ndarray) -> float:
     """Acceleration (m/s^2) of the mass at rest on the barrier on ``side`` (+1: +D)."""
     return acceleration(t, side * p[DB], 0.0, p)
 
 
-@njit
+@njit(inline="always")
 def rhs(t: float, y: np.ndarray, mode: int, p: np.ndarray, dy: np.ndarray) -> None:
     """dy/dt = (v, a); at rest while stuck on a barrier."""
     if mode != FREE:
@@ -77,7 +77,7 @@ def rhs(t: float, y: np.ndarray, mode: int, p: np.ndarray, dy: np.ndarray) -> No
     dy[1] = acc
 
 
-@njit
+@njit(inline="always")
 def events(t, y, mode, p, g, dirs, rates) -> None:
     """Slot 0: the barrier +D (impact, or an edge of an elastic stop) or, stuck there,
     its release; slot 2: the same for -D; slots 1 and 3: their rates."""

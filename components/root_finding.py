@@ -36,7 +36,7 @@ STATE_SIZE = 9
 MAX_TRIALS = 200
 
 
-@njit
+@njit(inline="always")
 def bracket(ta: float, fa: float, tb: float, fb: float, xtol: float) -> np.ndarray:
     """The locator's state for a bracket ``[ta, tb]`` with ``fa > 0 >= fb``; ``xtol`` is
     the width (same unit as t) below which the bracket counts as located."""
@@ -48,7 +48,7 @@ def bracket(ta: float, fa: float, tb: float, fb: float, xtol: float) -> np.ndarr
     return s
 
 
-@njit
+@njit(inline="always")
 def advance(s: np.ndarray) -> bool:
     """Take the value at the current point into account and propose the next trial
     point ``s[X_CUR]``; True when the bracket is located (no trial needed)."""
@@ -95,7 +95,7 @@ def advance(s: np.ndarray) -> bool:
     return done
 
 
-@njit
+@njit(inline="always")
 def crossed_end(s: np.ndarray) -> float:
     """The located end of the bracket on the crossed side (``f <= 0`` there)."""
     if s[F_CUR] <= 0.0:

@@ -14,6 +14,7 @@ import numpy as np
 from rubcosim.reference import system as S
 from rubcosim.reference.core import C_EVENTS, C_STATUS, N_COUNTERS, STATUS_OK, new_event_log
 from rubcosim.reference.fast import integrate
+from rubcosim.reference.unowned import keep_alive, unowned
 
 
 @nb.njit(cache=True)
@@ -50,6 +51,17 @@ def strobe_buffers(n, max_events):
            np.zeros(N_COUNTERS, dtype=np.int64))  # fmt: skip
     dde = (np.zeros((1, 2)), np.zeros(4, dtype=np.int64))
     return out, dde, np.empty(n)
+
+
+@nb.njit(cache=True, inline="always")
+def _unowned_buffers(bufs):  # pragma: no cover - compiled
+    """:func:`strobe_buffers`' arrays as views that are not reference-counted (``bufs``
+    must stay alive while they are used)."""
+    out, dde, y_end = bufs
+    log = out[2]
+    log = (unowned(log[0]), unowned(log[1]), unowned(log[2]), unowned(log[3]), unowned(log[4]))
+    out = (unowned(out[0]), unowned(out[1]), log, unowned(out[3]))
+    return out, (unowned(dde[0]), unowned(dde[1])), unowned(y_end)
 
 
 @nb.njit(cache=True)
@@ -142,13 +154,15 @@ def map_many(
     engine's status (0: ok) and row j of ``Y1`` is NaN when it is not 0.
     """
     n = Y0.shape[1]
-    pts = np.empty((1, n))
-    imp = np.zeros(1, dtype=np.int64)
-    md = np.zeros(1, dtype=np.int64)
-    no_section = (np.empty(0), np.empty((0, n)), np.zeros(1, dtype=np.int64))
-    bufs = strobe_buffers(n, max_events)  # once for the batch, not per map
-    tol = (rtol, atol, max_step)
-    y = np.empty(n)
+    owners = (np.empty((1, n)), np.zeros(1, dtype=np.int64), np.zeros(1, dtype=np.int64),
+              (np.empty(0), np.empty((0, n)), np.zeros(1, dtype=np.int64)),
+              strobe_buffers(n, max_events), np.empty(n))  # fmt: skip
+    # once for the batch, not per map; views that are not reference-counted at each of
+    # the maps' calls (owners is kept alive to the end)
+    pts, imp, md, y = unowned(owners[0]), unowned(owners[1]), unowned(owners[2]), unowned(owners[5])
+    no_section = (unowned(owners[3][0]), unowned(owners[3][1]), unowned(owners[3][2]))
+    bufs = _unowned_buffers(owners[4])
+    tol = (rtol, unowned(atol), max_step)
     for j in range(Y0.shape[0]):
         total = 0
         for i in range(n):
@@ -168,6 +182,7 @@ def map_many(
         modes1[j] = mode
         for i in range(n):
             Y1[j, i] = y[i] if st == STATUS_OK else np.nan
+    keep_alive(owners)
 
 
 @nb.njit(cache=True)

@@ -18,6 +18,7 @@ from rubcosim.components.root_finding import F_CUR, MAX_TRIALS, X_CUR, advance, 
 
 from .history import delayed_state, dense_eval
 from .system import N_EVENTS, events
+from .unowned import keep_alive, unowned
 
 
 @nb.njit(cache=True, inline="always")
@@ -50,12 +51,15 @@ def locate(slot, sgn, ta, fa, tb, fb, seg, ctx, hist, scratch):
     """Bracket [ta, tb] of a zero of ``sgn * g_slot`` (fa > 0 >= fb), located to
     round-off of t; returns the end point on the crossed side (sgn * g <= 0), so
     the event is known to have happened there."""
-    s = bracket(ta, fa, tb, fb, 4.0 * np.finfo(np.float64).eps * max(abs(ta), abs(tb), 1.0))
+    owner = bracket(ta, fa, tb, fb, 4.0 * np.finfo(np.float64).eps * max(abs(ta), abs(tb), 1.0))
+    s = unowned(owner)  # not reference-counted at every trial (owner is kept below)
     for _ in range(MAX_TRIALS):
         if advance(s):
             break
         s[F_CUR] = sgn * event_value(slot, s[X_CUR], seg, ctx, hist, scratch)
-    return crossed_end(s)
+    located = crossed_end(s)
+    keep_alive(owner)
+    return located
 
 
 @nb.njit(cache=True)

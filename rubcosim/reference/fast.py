@@ -138,6 +138,13 @@ def integrate(y0, mode, t0, t_end, p, ip, tol, out, hist, dde, y_final, tan):
     rtol, atol, max_step = tol
     t_eval, rec, evlog, cnt = out
     queue, qmeta = dde
+    # The caller's arrays, used at every step (the counters, the tolerance, the output
+    # grid): views that are not reference-counted (the caller keeps the arrays alive)
+    atol, t_eval, rec, cnt = unowned(atol), unowned(t_eval), unowned(rec), unowned(cnt)
+    queue, qmeta = unowned(queue), unowned(qmeta)
+    evlog = (unowned(evlog[0]), unowned(evlog[1]), unowned(evlog[2]), unowned(evlog[3]),
+             unowned(evlog[4]))  # fmt: skip
+    out, dde = (t_eval, rec, evlog, cnt), (queue, qmeta)
     n = y0.shape[0]
     # The step loop works on views that numba does not reference-count (unowned);
     # ``owners`` keeps the arrays themselves alive until the end of the function.
