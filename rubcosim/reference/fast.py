@@ -93,28 +93,28 @@ def initial_step(t0, y0, f0, t_bound, max_step, rtol, atol, mode, p, ip, hist, y
 
 
 @nb.njit(cache=True)
-def dense_coefficients(t_old, h, y_old, y_new, f_new, K, mode, p, ip, hist, yd, F, ytmp, dy, cnt):
-    """DOP853 dense output (scipy's F layout) for the step just taken."""
+def dense_coefficients(t_old, h, y_old, y_new, f_new, K, mode, p, ip, hist, yd, F, ytmp, cnt):
+    """DOP853 dense output (scipy's F layout) for the step just taken; ``K`` a view that is
+    not reference-counted (its rows are written in place)."""
     for s in range(N_STAGES + 1, N_EXT):
         stage_point(K, s, y_old, h, ytmp)
-        full_rhs(t_old + C[s] * h, ytmp, mode, p, ip, hist, yd, dy)
-        for i in range(y_old.shape[0]):
-            K[s, i] = dy[i]
+        full_rhs(t_old + C[s] * h, ytmp, mode, p, ip, hist, yd, K[s])
         cnt[C_RHS] += 1
     dense_from_stages(h, y_old, y_new, f_new, K, F)
 
 
 @nb.njit(cache=True, inline="always")
-def rk_step(t, y, f, h, mode, p, ip, hist, yd, K, y_new, f_new, ytmp, dy, cnt):
+def rk_step(t, y, f, h, mode, p, ip, hist, yd, K, y_new, f_new, ytmp, cnt):
+    """One DOP853 step of size ``h`` from ``(t, y)`` with ``f`` the slope there: the stages
+    into ``K`` (a view that is not reference-counted: its rows are written in place),
+    the solution into ``y_new`` and its slope into ``f_new``."""
     n = y.shape[0]
     for i in range(n):
         K[0, i] = f[i]
     for s in range(1, N_STAGES):
         stage_point(K, s, y, h, ytmp)
-        # a scratch vector, not a row view of K: a view costs a reference count per stage
-        full_rhs(t + C[s] * h, ytmp, mode, p, ip, hist, yd, dy)
-        for i in range(n):
-            K[s, i] = dy[i]
+        # straight into K's row: K is a view that is not reference-counted (integrate's)
+        full_rhs(t + C[s] * h, ytmp, mode, p, ip, hist, yd, K[s])
     solution_point(K, y, h, y_new)
     full_rhs(t + h, y_new, mode, p, ip, hist, yd, f_new)
     for i in range(n):
@@ -153,7 +153,7 @@ def integrate(y0, mode, t0, t_end, p, ip, tol, out, hist, dde, y_final, tan):
     y, stages, y_next, yd, ev_state, event_work, obuf = owners
     y, y_next, yd = unowned(y), unowned(y_next), unowned(yd)
     K, F, f, f_new = unowned(stages[0]), unowned(stages[1]), unowned(stages[2]), unowned(stages[3])
-    y_new, ytmp, dy = unowned(stages[4]), unowned(stages[5]), unowned(stages[6])
+    y_new, ytmp = unowned(stages[4]), unowned(stages[5])
     g_a, side, dirs, rates = (unowned(ev_state[0]), unowned(ev_state[1]),
                               unowned(ev_state[2]), unowned(ev_state[3]))  # fmt: skip
     g_b, dirs_b, rates_b = unowned(ev_state[4]), unowned(ev_state[5]), unowned(ev_state[6])
@@ -196,7 +196,7 @@ def integrate(y0, mode, t0, t_end, p, ip, tol, out, hist, dde, y_final, tan):
                     t_new = bound
                 h = t_new - t
                 h_abs = abs(h)
-                rk_step(t, y, f, h, mode, p, ip, hist, yd, K, y_new, f_new, ytmp, dy, cnt)
+                rk_step(t, y, f, h, mode, p, ip, hist, yd, K, y_new, f_new, ytmp, cnt)
                 accepted, h_abs = next_step(error_norm(K, h, y, y_new, rtol, atol), h_abs, rejected)
                 if accepted:
                     break
@@ -221,7 +221,7 @@ def integrate(y0, mode, t0, t_end, p, ip, tol, out, hist, dde, y_final, tan):
                 sides_from(g_b, side)
                 t = t_new
                 continue
-            dense_coefficients(t, h, y, y_new, f_new, K, mode, p, ip, hist, yd, F, ytmp, dy, cnt)
+            dense_coefficients(t, h, y, y_new, f_new, K, mode, p, ip, hist, yd, F, ytmp, cnt)
             t_next, mode_next, fs, fside = after_step(
                 t, t_new, y, y_new, F, mode, p, ip, hist, dde, ev, out, y_next, work
             )
