@@ -63,7 +63,7 @@ CHATTER_TOL = positive(
 )
 
 
-@njit
+@njit(inline="always")
 def link_forces(t: float, x1: float, v1: float, x2: float, v2: float, p: np.ndarray):
     """Forces (N) on m1 and m2 from the springs, dampers, forcing and the input force on
     m1 (not the stop)."""
@@ -73,7 +73,7 @@ def link_forces(t: float, x1: float, v1: float, x2: float, v2: float, p: np.ndar
     return f1, -link + p[Q] * drive
 
 
-@njit
+@njit(inline="always")
 def rhs(t: float, y: np.ndarray, mode: int, p: np.ndarray, dy: np.ndarray) -> None:
     """State (x1, v1, x2, v2); stuck on the stop, m2 stays at x2 = B at rest."""
     x2, v2 = (p[GAP], 0.0) if mode == STUCK else (y[2], y[3])
@@ -84,7 +84,7 @@ def rhs(t: float, y: np.ndarray, mode: int, p: np.ndarray, dy: np.ndarray) -> No
     dy[3] = 0.0 if mode == STUCK else f2 / p[M2]
 
 
-@njit
+@njit(inline="always")
 def events(t, y, mode, p, g, dirs, rates) -> None:
     """Free: the gap of m2 to the stop falls through 0 (its rate -v2 in slot 1).
     Stuck: how hard m2 is pressed on the stop falls through 0 (release)."""
