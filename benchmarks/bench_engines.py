@@ -80,6 +80,7 @@ from rubcosim.components.stator import contact_geometry, rigid_impact
 from rubcosim.reference import System, build_system, make_unit, simulate
 from rubcosim.reference.history import full_rhs
 from rubcosim.reference.system import N_DELAYED
+from rubcosim.reference.unowned import keep_alive, unowned
 
 REPO = Path(__file__).resolve().parents[1]
 DEFAULT_OUT = REPO / "benchmarks" / "results" / "engines.json"
@@ -427,13 +428,17 @@ def time_runs(
 @nb.njit
 def _rhs_calls(y, p, ip, period, calls):  # pragma: no cover - compiled
     """``calls`` right-hand sides of the free motion at times spread over one period
-    (so the forcing's cos is not the same call each time); returns a checksum."""
-    dy = np.empty_like(y)
-    yd = np.empty(N_DELAYED)
+    (so the forcing's cos is not the same call each time); returns a checksum.  The
+    arrays are passed as the engine passes its own (views that are not reference-
+    counted, :mod:`rubcosim.reference.unowned`): what is timed is the right-hand side,
+    not numba's reference counting of the arguments."""
+    owners = (y.copy(), np.empty_like(y), np.empty(N_DELAYED))
+    y, dy, yd = unowned(owners[0]), unowned(owners[1]), unowned(owners[2])
     acc = 0.0
     for k in range(calls):
         full_rhs(period * k / calls, y, 0, p, ip, None, yd, dy)
         acc += dy[-1]
+    keep_alive(owners)
     return acc
 
 
@@ -442,14 +447,15 @@ def _chained_rhs_calls(y0, p, ip, period, calls):  # pragma: no cover - compiled
     """:func:`_rhs_calls` with each call's state depending on the previous call's result
     (``y0 + 1e-9 * f``), as a Runge-Kutta stage depends on the stages before it: the
     processor cannot overlap one call with the next (the forcing's ``cos`` included)."""
-    y = y0.copy()
-    dy = np.empty_like(y)
-    yd = np.empty(N_DELAYED)
+    owners = (y0.copy(), y0.copy(), np.empty_like(y0), np.empty(N_DELAYED))
+    y0, y, dy, yd = unowned(owners[0]), unowned(owners[1]), unowned(owners[2]), unowned(owners[3])
     for k in range(calls):
         full_rhs(period * k / calls, y, 0, p, ip, None, yd, dy)
         for i in range(y.shape[0]):
             y[i] = y0[i] + 1e-9 * dy[i]
-    return y[-1]
+    last = y[-1]
+    keep_alive(owners)
+    return last
 
 
 def rhs_cost(
