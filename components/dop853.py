@@ -116,6 +116,19 @@ def dense_poly(x, F, c):
     """The polynomial part of scipy's DOP853 dense output of component ``c`` at the
     step fraction ``x = (t - t_old) / h`` (the output is ``y_old[c]`` plus this)."""
     npow = F.shape[0]
+    if npow == 7:
+        # scipy's seven rows, written out: the same operations in the same order as the
+        # loop below (bit for bit), without its index arithmetic and select per row, so
+        # the processor overlaps the components' chains (event location evaluates the
+        # dense output a dozen times per event)
+        y = 1.0 - x
+        acc = (0.0 + F[6, c]) * x
+        acc = (acc + F[5, c]) * y
+        acc = (acc + F[4, c]) * x
+        acc = (acc + F[3, c]) * y
+        acc = (acc + F[2, c]) * x
+        acc = (acc + F[1, c]) * y
+        return (acc + F[0, c]) * x
     acc = 0.0
     for i in range(npow):
         acc += F[npow - 1 - i, c]
