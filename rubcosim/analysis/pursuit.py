@@ -159,7 +159,7 @@ def pursuit_basins(
     t = tally(grid, samples, label, known)
     label, labels, attractor_of = t["label"], t["labels"], t["attractor_of"]
     where = (labels == LABEL_BOUNDARY) | (attractor_of >= 0)
-    fps = fixed_points(smap, grid, points, images, samples, where)
+    fps = fixed_points(smap, grid, points, images, samples, where, workers, scheduler)
     for p in fps:  # where it lies: a saddle on a basin boundary, or inside an attractor
         p["on_boundary"] = bool(labels[p["cell"]] == LABEL_BOUNDARY)
         p["in_attractor"] = int(attractor_of[p["cell"]])

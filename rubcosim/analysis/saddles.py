@@ -25,8 +25,9 @@ import numpy as np
 
 from .cellmap import Grid
 from .errors import MapError
-from .floquet import FLOQUET_RTOL, floquet, floquet_report
+from .floquet import FLOQUET_RTOL, Floquet, floquet, floquet_report
 from .maps import StroboscopicMap
+from .parallel import default_workers, executor
 
 MAX_CANDIDATES = 64  # Newton starts, smallest displacement first
 SPREAD = 1  # cells between Newton starts
@@ -34,6 +35,7 @@ WIDTHS = 4.0  # candidate cells: smallest displacement below this many cell widt
 SAME_POINT = 1e-6  # state scales: Newton results this close are one fixed point
 NEWTON_TOL = 1e-10
 NEWTON_ITER = 10  # from a start this close Newton converges in a few; else give up
+NEWTON_SPLIT = 16  # starts: fewer run in this process (a worker pool costs more)
 
 
 def winding_starts(
@@ -90,6 +92,18 @@ def fixed_point_candidates(
     return points[cand * samples + best[cand]]
 
 
+def _newton(tight: StroboscopicMap, starts: np.ndarray) -> list[Floquet | None]:
+    """Newton from each start (one task): the fixed point and its multipliers, or None
+    where Newton stops on grazing or a singular step."""
+    out: list[Floquet | None] = []
+    for y in starts:
+        try:
+            out.append(floquet(tight, y, 1, tol=NEWTON_TOL, max_iter=NEWTON_ITER))
+        except (MapError, np.linalg.LinAlgError):
+            out.append(None)  # grazing or a singular Newton step: no fixed point from here
+    return out
+
+
 def fixed_points(
     smap: StroboscopicMap,
     grid: Grid,
@@ -97,20 +111,29 @@ def fixed_points(
     images: np.ndarray,
     samples: int,
     where: np.ndarray | None = None,
+    workers: int | None = None,
+    scheduler: str | None = None,
 ) -> list[dict[str, Any]]:
     """The distinct fixed points of P found from the cells where ``where`` holds (the
     boundary and attractor cells: a saddle on a basin boundary lies in a mixed cell):
     state, cell (0-based ``c = j nx + i``), impacts per period, multipliers and whether
-    it is a saddle."""
+    it is a saddle.  The Newton starts run on ``workers`` processes (or a Dask cluster
+    at ``scheduler``, :func:`.parallel.executor`); the result does not depend on how."""
     tight = StroboscopicMap(smap.system, FLOQUET_RTOL, smap.max_events)
     found: list[dict[str, Any]] = []
     wind = winding_starts(grid, points, images, smap.scale, samples)[:MAX_CANDIDATES]
     small = fixed_point_candidates(grid, points, images, smap.scale, samples, where)
-    for y in np.concatenate((wind, small)):
-        try:
-            f = floquet(tight, y, 1, tol=NEWTON_TOL, max_iter=NEWTON_ITER)
-        except (MapError, np.linalg.LinAlgError):
-            continue  # grazing or a singular Newton step: no fixed point from here
+    starts = np.concatenate((wind, small))
+    n = 1 if scheduler is None and workers == 1 else max(2, workers or default_workers())
+    with executor(workers if starts.shape[0] >= NEWTON_SPLIT else 1, scheduler) as pool:
+        # interleaved: neighbouring starts (the most compact first) cost alike
+        parts = [pool.submit(_newton, tight, starts[i::n]) for i in range(n)]
+        newton: list[Floquet | None] = [None] * starts.shape[0]
+        for i, part in enumerate(parts):
+            newton[i::n] = part.result()
+    for f in newton:
+        if f is None:
+            continue
         cell = int(grid.cell_of(f.state[None, :])[0])
         if f.residual > 1e3 * NEWTON_TOL or cell == grid.sink:
             continue
