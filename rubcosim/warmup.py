@@ -37,6 +37,7 @@ def _controller_kernels() -> None:
     job, the shorter of the two, where their compilation fits in the other's time."""
     import numpy as np
 
+    from .components.delay_history import ROW
     from .components.flat_controller import (
         controller_outputs,
         controller_params,
@@ -47,7 +48,7 @@ def _controller_kernels() -> None:
 
     unit = make_unit("controller", "delayed_feedback", gain=1.0, delay=1e-3, memory=0.5, speed=0.0)
     p = controller_params(unit.params)
-    cs, buf, scratch = np.array([0.0, 0.0, np.nan]), np.zeros((8, 6)), np.zeros((9, 6))
+    cs, buf, scratch = np.array([0.0, 0.0, np.nan]), np.zeros((8, ROW)), np.zeros((9, ROW))
     controller_step(p, cs, buf, scratch, 0.0, 0.0, 0.0, 0.0, 0.0)
     controller_outputs(p, cs, buf, scratch, 0.0, 0.0, 0.0, 0.0, 0.0, np.empty(3))
     make_room(cs, buf, 1)

@@ -122,6 +122,20 @@ def executor(workers: int | None = None, scheduler: str | None = None) -> Iterat
 SPLIT_MIN = 500  # rows: fewer are mapped in this process (a task costs more than it saves)
 
 
+def part_count(workers: int | None = None, scheduler: str | None = None) -> int:
+    """Into how many parts a batch is split for :func:`interleaved`: one per worker (at
+    least two on a pool or a cluster), one when it runs inline."""
+    return 1 if scheduler is None and workers == 1 else max(2, workers or default_workers())
+
+
+def interleaved(pool: cf.Executor, n: int, fn: Callable[..., Any], head: Any, rows: Any) -> list:
+    """``fn(head, rows[i::n])`` for each of the ``n`` parts on ``pool``, the results in
+    part order.  Interleaved rows, not contiguous blocks: neighbouring rows of a batch
+    (often sorted by position) cost alike, so each part gets its share of the dear ones."""
+    parts = [pool.submit(fn, head, rows[i::n]) for i in range(n)]
+    return [part.result() for part in parts]
+
+
 def _images(smap: Any, states: np.ndarray) -> np.ndarray:
     return smap.map(states)[0]
 
@@ -133,18 +147,15 @@ def parallel_images(
     """A function giving the one-period images of many states (rows; NaN where the run
     failed) of ``smap`` (a :class:`.maps.StroboscopicMap`), the rows split over the
     executor's workers; for analyses that map many small batches in turn."""
-    n = 1 if scheduler is None and workers == 1 else max(2, workers or default_workers())
+    n = part_count(workers, scheduler)
     with executor(workers, scheduler) as pool:
 
         def images(states: np.ndarray) -> np.ndarray:
             if n == 1 or states.shape[0] < SPLIT_MIN:
                 return _images(smap, states)
-            # interleaved rows: neighbouring states cost alike (a batch is often
-            # sorted by position), so contiguous halves would leave a worker idle
-            parts = [pool.submit(_images, smap, states[i::n]) for i in range(n)]
             out = np.empty_like(states)
-            for i, f in enumerate(parts):
-                out[i::n] = f.result()
+            for i, part in enumerate(interleaved(pool, n, _images, smap, states)):
+                out[i::n] = part
             return out
 
         yield images

@@ -27,7 +27,7 @@ from .cellmap import Grid
 from .errors import MapError
 from .floquet import FLOQUET_RTOL, Floquet, floquet, floquet_report
 from .maps import StroboscopicMap
-from .parallel import default_workers, executor
+from .parallel import executor, interleaved, part_count
 
 MAX_CANDIDATES = 64  # Newton starts, smallest displacement first
 SPREAD = 1  # cells between Newton starts
@@ -124,13 +124,11 @@ def fixed_points(
     wind = winding_starts(grid, points, images, smap.scale, samples)[:MAX_CANDIDATES]
     small = fixed_point_candidates(grid, points, images, smap.scale, samples, where)
     starts = np.concatenate((wind, small))
-    n = 1 if scheduler is None and workers == 1 else max(2, workers or default_workers())
+    n = part_count(workers, scheduler)
+    newton: list[Floquet | None] = [None] * starts.shape[0]
     with executor(workers if starts.shape[0] >= NEWTON_SPLIT else 1, scheduler) as pool:
-        # interleaved: neighbouring starts (the most compact first) cost alike
-        parts = [pool.submit(_newton, tight, starts[i::n]) for i in range(n)]
-        newton: list[Floquet | None] = [None] * starts.shape[0]
-        for i, part in enumerate(parts):
-            newton[i::n] = part.result()
+        for i, part in enumerate(interleaved(pool, n, _newton, tight, starts)):
+            newton[i::n] = part
     for f in newton:
         if f is None:
             continue
