@@ -12,6 +12,8 @@ import math
 import numpy as np
 
 from . import dop853_tableau as _dop
+from .dop853_sums import dense_sums, error_sums, solution_sum
+from .dop853_sums import stage_point as stage_point  # the engines' stage, from here
 from .jit import njit
 
 N_STAGES = _dop.N_STAGES
@@ -36,11 +38,7 @@ def error_norm(K, h, y, y_new, rtol, atol):
     e3 = 0.0
     for i in range(n):
         sc = atol[i] + max(abs(y[i]), abs(y_new[i])) * rtol
-        a5 = 0.0
-        a3 = 0.0
-        for j in range(N_STAGES + 1):
-            a5 += E5[j] * K[j, i]
-            a3 += E3[j] * K[j, i]
+        a5, a3 = error_sums(K, i)
         e5 += (a5 / sc) ** 2
         e3 += (a3 / sc) ** 2
     if e5 == 0.0 and e3 == 0.0:
@@ -66,24 +64,10 @@ def step_factor(err, rejected):
 
 
 @njit(inline="always")
-def stage_point(K, s, y, h, ytmp):
-    """The state at which stage ``s`` evaluates the right-hand side:
-    ``ytmp = y + h * sum_{j<s} A[s, j] K[j]``."""
-    for i in range(y.shape[0]):
-        acc = 0.0
-        for j in range(s):
-            acc += A[s, j] * K[j, i]
-        ytmp[i] = y[i] + acc * h
-
-
-@njit(inline="always")
 def solution_point(K, y, h, y_new):
     """The step's 8th-order solution ``y_new = y + h * sum_j B[j] K[j]``."""
     for i in range(y.shape[0]):
-        acc = 0.0
-        for j in range(N_STAGES):
-            acc += B[j] * K[j, i]
-        y_new[i] = y[i] + h * acc
+        y_new[i] = y[i] + h * solution_sum(K, i)
 
 
 @njit(inline="always")
@@ -94,11 +78,11 @@ def dense_from_stages(h, y_old, y_new, f_new, K, F):
         F[0, i] = delta
         F[1, i] = h * K[0, i] - delta
         F[2, i] = 2.0 * delta - h * (f_new[i] + K[0, i])
-        for r in range(D.shape[0]):
-            acc = 0.0
-            for j in range(N_EXT):
-                acc += D[r, j] * K[j, i]
-            F[3 + r, i] = h * acc
+        d0, d1, d2, d3 = dense_sums(K, i)
+        F[3, i] = h * d0
+        F[4, i] = h * d1
+        F[5, i] = h * d2
+        F[6, i] = h * d3
 
 
 @njit(inline="always")
