@@ -17,8 +17,7 @@ acceleration pushes it into the barrier.
 
 from __future__ import annotations
 
-import math
-
+from . import trig
 from .jit import njit
 from .parameters import ParameterError, choice, nonnegative, positive, real
 
@@ -56,7 +55,7 @@ def free_acceleration(
     t: float, x: float, v: float, a: float, b: float, c3: float, f: float, w: float
 ) -> float:
     """Acceleration without stop forces, m/s^2."""
-    return f * math.cos(w * t) - b * v - a * x - c3 * x * x * x
+    return f * trig.cos(w * t) - b * v - a * x - c3 * x * x * x
 
 
 @njit(inline="always")

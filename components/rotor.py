@@ -17,6 +17,7 @@ import math
 
 import numpy as np
 
+from . import trig
 from .jit import njit
 from .parameters import nonnegative, planar_initial_state, positive
 
@@ -48,7 +49,8 @@ TWO_MASS_PARAMS = (
 def unbalance_force(t: float, m: float, e: float, w: float) -> tuple[float, float]:
     """Rotating unbalance force on the disc, N: m e w^2 (cos wt, sin wt)."""
     a = m * e * w * w
-    return a * math.cos(w * t), a * math.sin(w * t)
+    c, s = trig.cos_sin(w * t)
+    return a * c, a * s
 
 
 @njit

@@ -20,12 +20,12 @@ co-simulation unit (and its FMU) steps them (:mod:`.hybrid`).
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
 
+from . import trig
 from .declaration import FmuIdentity, State, UnitType
 from .hybrid import HybridKernels, HybridUnit, input_value
 from .hybrid_dispatch import KIND_IMPACT, KIND_RELEASE
@@ -67,7 +67,7 @@ CHATTER_TOL = positive(
 def link_forces(t: float, x1: float, v1: float, x2: float, v2: float, p: np.ndarray):
     """Forces (N) on m1 and m2 from the springs, dampers, forcing and the input force on
     m1 (not the stop)."""
-    drive = p[AMP] * math.cos(p[W] * t)
+    drive = p[AMP] * trig.cos(p[W] * t)
     link = p[K2] * (x2 - x1) + p[C2] * (v2 - v1)  # pulls m1 towards m2
     f1 = -p[K1] * x1 - p[C1] * v1 + link + drive + input_value(p, INPUTS, 0, t)
     return f1, -link + p[Q] * drive
