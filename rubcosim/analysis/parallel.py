@@ -119,21 +119,42 @@ def executor(workers: int | None = None, scheduler: str | None = None) -> Iterat
         yield pool
 
 
+@contextlib.contextmanager
+def _given_or_new(
+    pool: cf.Executor | None, workers: int | None, scheduler: str | None
+) -> Iterator[cf.Executor]:
+    """``pool`` itself (left open: its owner closes it), else a new :func:`executor`."""
+    if pool is not None:
+        yield pool
+        return
+    with executor(workers, scheduler) as new:
+        yield new
+
+
 SPLIT_MIN = 500  # rows: fewer are mapped in this process (a task costs more than it saves)
 
 
 def part_count(workers: int | None = None, scheduler: str | None = None) -> int:
-    """Into how many parts a batch is split for :func:`interleaved`: one per worker (at
+    """Into how many parts a batch is split for :func:`submit_interleaved`: one per worker (at
     least two on a pool or a cluster), one when it runs inline."""
     return 1 if scheduler is None and workers == 1 else max(2, workers or default_workers())
 
 
-def interleaved(pool: cf.Executor, n: int, fn: Callable[..., Any], head: Any, rows: Any) -> list:
-    """``fn(head, rows[i::n])`` for each of the ``n`` parts on ``pool``, the results in
-    part order.  Interleaved rows, not contiguous blocks: neighbouring rows of a batch
-    (often sorted by position) cost alike, so each part gets its share of the dear ones."""
-    parts = [pool.submit(fn, head, rows[i::n]) for i in range(n)]
-    return [part.result() for part in parts]
+def submit_interleaved(
+    pool: cf.Executor, n: int, fn: Callable[..., Any], head: Any, rows: Any
+) -> list[cf.Future]:
+    """``fn(head, rows[i::n])`` for each of the ``n`` parts, submitted to ``pool``.
+    Interleaved rows, not contiguous blocks: neighbouring rows of a batch (often sorted
+    by position) cost alike, so each part gets its share of the dear ones."""
+    return [pool.submit(fn, head, rows[i::n]) for i in range(n)]
+
+
+def gather_interleaved(parts: list[cf.Future], out: Any) -> Any:
+    """The parts' results (rows of :func:`submit_interleaved`'s parts, in order) put back
+    in row order into ``out`` (an array or a list of the batch's length)."""
+    for i, part in enumerate(parts):
+        out[i :: len(parts)] = part.result()
+    return out
 
 
 def _images(smap: Any, states: np.ndarray) -> np.ndarray:
@@ -142,21 +163,23 @@ def _images(smap: Any, states: np.ndarray) -> np.ndarray:
 
 @contextlib.contextmanager
 def parallel_images(
-    smap: Any, workers: int | None = None, scheduler: str | None = None
+    smap: Any,
+    workers: int | None = None,
+    scheduler: str | None = None,
+    pool: cf.Executor | None = None,
 ) -> Iterator[Callable[[np.ndarray], np.ndarray]]:
     """A function giving the one-period images of many states (rows; NaN where the run
     failed) of ``smap`` (a :class:`.maps.StroboscopicMap`), the rows split over the
-    executor's workers; for analyses that map many small batches in turn."""
+    executor's workers (``pool`` when given: an analysis' own, else a new one); for
+    analyses that map many small batches in turn."""
     n = part_count(workers, scheduler)
-    with executor(workers, scheduler) as pool:
+    with _given_or_new(pool, workers, scheduler) as pool:
 
         def images(states: np.ndarray) -> np.ndarray:
             if n == 1 or states.shape[0] < SPLIT_MIN:
                 return _images(smap, states)
-            out = np.empty_like(states)
-            for i, part in enumerate(interleaved(pool, n, _images, smap, states)):
-                out[i::n] = part
-            return out
+            parts = submit_interleaved(pool, n, _images, smap, states)
+            return gather_interleaved(parts, np.empty_like(states))
 
         yield images
 
@@ -211,11 +234,13 @@ def map_in_chunks(
     checkpoint_dir: Any,
     chunk: int,
     progress: bool,
+    pool: cf.Executor | None = None,
 ) -> list[dict[str, np.ndarray]]:
     """Run ``function(smap, grid, first, last, samples, seed)`` over the cells of ``grid``
     (a :class:`.cellmap.Grid`; ``smap`` a :class:`.maps.StroboscopicMap`) in chunks
-    of ``chunk``, in parallel and checkpointed (a checkpoint is tied to ``analysis``,
-    the grid, the sampling and the system); the chunks' results in cell order."""
+    of ``chunk``, in parallel (on ``pool`` when given, else a new :func:`executor`) and
+    checkpointed (a checkpoint is tied to ``analysis``, the grid, the sampling and the
+    system); the chunks' results in cell order."""
     starts = list(range(0, grid.n_cells, chunk))
     keys = [f"{kind}_{a:09d}" for a in starts]
     tasks = [
@@ -241,7 +266,7 @@ def map_in_chunks(
         tasks = [t for t in tasks if t[0] not in done]
     if tasks:
         smap.map(smap.system.y0[None, :])  # load the kernels once: forked workers share them
-        with executor(workers, scheduler) as pool:
+        with _given_or_new(pool, workers, scheduler) as pool:
             results.update(
                 run_tasks(function, tasks, pool, checkpoint, desc=kind, progress=progress)
             )

@@ -47,8 +47,8 @@ from .cellmap import (
     check_inputs,
 )
 from .maps import StroboscopicMap
-from .parallel import map_in_chunks, parallel_images
-from .saddles import fixed_points
+from .parallel import executor, map_in_chunks, parallel_images, part_count
+from .saddles import FixedPointSearch
 from .sample_graph import map_samples, sample_graph
 from .state_space import StateSpace
 from .trusted_ties import K_NEAR, settle_samples
@@ -64,11 +64,12 @@ def _map_all(
     checkpoint_dir: Any,
     chunk: int,
     progress: bool,
+    pool: Any,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Every sample point and its one-period image, (n_cells * samples, 2) each."""
     chunks = map_in_chunks(
         smap, grid, samples, seed, map_samples, "samples", "pursuit",
-        workers, scheduler, checkpoint_dir, chunk, progress,
+        workers, scheduler, checkpoint_dir, chunk, progress, pool,
     )  # fmt: skip
     points = all_samples(grid, samples, seed, chunk)
     images = np.concatenate([r["image"] for r in chunks])
@@ -130,40 +131,50 @@ def pursuit_basins(
     chunk: int = DEFAULT_CHUNK,
     progress: bool = False,
 ) -> Basins:
-    """Basins, attractors and saddles by pursuit of every sample (see the module doc)."""
+    """Basins, attractors and saddles by pursuit of every sample (see the module doc).
+
+    One pool of workers serves the whole analysis; what needs no result of the stage
+    in progress runs on it meanwhile (Newton from the winding starts, a chaotic
+    attractor's Lyapunov exponent) while this process builds the sample graph and
+    classifies the attractors."""
     check_inputs(smap, samples, seed)
     clock = {"start": time.perf_counter()}
-    points, images = _map_all(
-        smap, grid, samples, seed, workers, scheduler, checkpoint_dir, chunk, progress
-    )
-    clock["mapped"] = time.perf_counter()
-    g = sample_graph(grid, points, images, k=K_NEAR)
-    clock["graph"] = time.perf_counter()
-    space = StateSpace(smap, grid, (0, 1))
-    heads_fate, known, found = settle(smap, space, points[g["cycles"]])
+    with executor(workers, scheduler) as pool:
+        points, images = _map_all(
+            smap, grid, samples, seed, workers, scheduler, checkpoint_dir, chunk, progress, pool
+        )
+        clock["mapped"] = time.perf_counter()
+        search = FixedPointSearch(
+            smap, grid, points, images, samples, pool, part_count(workers, scheduler)
+        )
+        g = sample_graph(grid, points, images, k=K_NEAR)
+        clock["graph"] = time.perf_counter()
+        space = StateSpace(smap, grid, (0, 1), pool)
+        heads_fate, known, found = settle(smap, space, points[g["cycles"]])
+        clock["attractors"] = time.perf_counter()
+        # each sample's fate through trusted ties only, the others tracked exactly
+        with parallel_images(smap, workers, scheduler, pool) as mapper:
+            label, tied = settle_samples(
+                smap, space, grid, points, images, g, heads_fate, known, mapper
+            )
+        space.lyapunov_done(known)
+        clock["ties"] = time.perf_counter()
+        t = tally(grid, samples, label, known)
+        where = (t["labels"] == LABEL_BOUNDARY) | (t["attractor_of"] >= 0)
+        fps = search.result(where)
+        clock["saddles"] = time.perf_counter()
     stats = {
         "cycles": found["starts"],
         "cycles_simulated": found["simulated"],
         "cycles_pursued": found["pursued"],
         "pursuit_periods": found["pursuit_periods"],
+        "ties": tied,
     }
-    clock["attractors"] = time.perf_counter()
-    # each sample's fate through trusted ties only, the others tracked exactly
-    with parallel_images(smap, workers, scheduler) as mapper:
-        label, tied = settle_samples(
-            smap, space, grid, points, images, g, heads_fate, known, mapper
-        )
-    stats["ties"] = tied
     n_att = len(known)
-    clock["ties"] = time.perf_counter()
-    t = tally(grid, samples, label, known)
     label, labels, attractor_of = t["label"], t["labels"], t["attractor_of"]
-    where = (labels == LABEL_BOUNDARY) | (attractor_of >= 0)
-    fps = fixed_points(smap, grid, points, images, samples, where, workers, scheduler)
     for p in fps:  # where it lies: a saddle on a basin boundary, or inside an attractor
         p["on_boundary"] = bool(labels[p["cell"]] == LABEL_BOUNDARY)
         p["in_attractor"] = int(attractor_of[p["cell"]])
-    clock["saddles"] = time.perf_counter()
     total = points.shape[0]
     motions = t["motions"]
     image = grid.cell_of(np.nan_to_num(images, nan=np.inf)).reshape(grid.n_cells, samples)

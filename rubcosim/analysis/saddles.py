@@ -19,6 +19,7 @@ map); stable ones cross-check the periodic attractors.
 
 from __future__ import annotations
 
+import concurrent.futures as cf
 from typing import Any
 
 import numpy as np
@@ -27,7 +28,7 @@ from .cellmap import Grid
 from .errors import MapError
 from .floquet import FLOQUET_RTOL, Floquet, floquet, floquet_report
 from .maps import StroboscopicMap
-from .parallel import executor, interleaved, part_count
+from .parallel import gather_interleaved, submit_interleaved
 
 MAX_CANDIDATES = 64  # Newton starts, smallest displacement first
 SPREAD = 1  # cells between Newton starts
@@ -35,7 +36,6 @@ WIDTHS = 4.0  # candidate cells: smallest displacement below this many cell widt
 SAME_POINT = 1e-6  # state scales: Newton results this close are one fixed point
 NEWTON_TOL = 1e-10
 NEWTON_ITER = 10  # from a start this close Newton converges in a few; else give up
-NEWTON_SPLIT = 16  # starts: fewer run in this process (a worker pool costs more)
 
 
 def winding_starts(
@@ -104,31 +104,58 @@ def _newton(tight: StroboscopicMap, starts: np.ndarray) -> list[Floquet | None]:
     return out
 
 
-def fixed_points(
-    smap: StroboscopicMap,
-    grid: Grid,
-    points: np.ndarray,
-    images: np.ndarray,
-    samples: int,
-    where: np.ndarray | None = None,
-    workers: int | None = None,
-    scheduler: str | None = None,
+class FixedPointSearch:
+    """Newton from the samples' candidate starts (see the module doc), in two parts so
+    that the first runs while an analysis does other work: the winding starts, which
+    need only the samples and their images, are submitted to ``pool`` at once; the
+    smallest-displacement starts once the cells to search are known (:meth:`result`).
+    The result does not depend on where the starts run (processes, a Dask cluster,
+    inline)."""
+
+    def __init__(
+        self,
+        smap: StroboscopicMap,
+        grid: Grid,
+        points: np.ndarray,
+        images: np.ndarray,
+        samples: int,
+        pool: cf.Executor,
+        parts: int,
+    ) -> None:
+        self.smap, self.grid, self.samples = smap, grid, samples
+        self.points, self.images = points, images
+        self.pool, self.parts = pool, parts
+        self.tight = StroboscopicMap(smap.system, FLOQUET_RTOL, smap.max_events)
+        wind = winding_starts(grid, points, images, smap.scale, samples)[:MAX_CANDIDATES]
+        self._wind = self._submit(wind)
+
+    def _submit(self, starts: np.ndarray) -> tuple[list[cf.Future], int]:
+        n = min(self.parts, max(1, starts.shape[0]))
+        return submit_interleaved(self.pool, n, _newton, self.tight, starts), starts.shape[0]
+
+    @staticmethod
+    def _gather(submitted: tuple[list[cf.Future], int]) -> list[Floquet | None]:
+        parts, count = submitted
+        return gather_interleaved(parts, [None] * count)
+
+    def result(self, where: np.ndarray | None = None) -> list[dict[str, Any]]:
+        """The distinct fixed points of P found from the winding starts and the cells
+        where ``where`` holds (the boundary and attractor cells: a saddle on a basin
+        boundary lies in a mixed cell): state, cell (0-based ``c = j nx + i``), impacts
+        per period, multipliers and whether it is a saddle, in Newton's start order."""
+        small = fixed_point_candidates(
+            self.grid, self.points, self.images, self.smap.scale, self.samples, where
+        )
+        newton = self._gather(self._wind) + self._gather(self._submit(small))
+        return _distinct(self.smap, self.grid, newton)
+
+
+def _distinct(
+    smap: StroboscopicMap, grid: Grid, newton: list[Floquet | None]
 ) -> list[dict[str, Any]]:
-    """The distinct fixed points of P found from the cells where ``where`` holds (the
-    boundary and attractor cells: a saddle on a basin boundary lies in a mixed cell):
-    state, cell (0-based ``c = j nx + i``), impacts per period, multipliers and whether
-    it is a saddle.  The Newton starts run on ``workers`` processes (or a Dask cluster
-    at ``scheduler``, :func:`.parallel.executor`); the result does not depend on how."""
-    tight = StroboscopicMap(smap.system, FLOQUET_RTOL, smap.max_events)
+    """The distinct converged fixed points inside the region among Newton's results, in
+    their order, with their cell, impacts, multipliers and whether each is a saddle."""
     found: list[dict[str, Any]] = []
-    wind = winding_starts(grid, points, images, smap.scale, samples)[:MAX_CANDIDATES]
-    small = fixed_point_candidates(grid, points, images, smap.scale, samples, where)
-    starts = np.concatenate((wind, small))
-    n = part_count(workers, scheduler)
-    newton: list[Floquet | None] = [None] * starts.shape[0]
-    with executor(workers if starts.shape[0] >= NEWTON_SPLIT else 1, scheduler) as pool:
-        for i, part in enumerate(interleaved(pool, n, _newton, tight, starts)):
-            newton[i::n] = part
     for f in newton:
         if f is None:
             continue

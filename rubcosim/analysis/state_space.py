@@ -9,6 +9,7 @@ so its size is set in state scales, not cells, and tested in more directions.
 
 from __future__ import annotations
 
+import concurrent.futures as cf
 from typing import Any
 
 import numpy as np
@@ -40,10 +41,19 @@ class StateSpace:
     """Verified neighbourhoods in the full state space: a ball of radius
     ``Attractor.radius`` (state scales, max norm) around each of its points."""
 
-    def __init__(self, smap: StroboscopicMap, grid: Grid, axes: tuple[int, int]) -> None:
+    def __init__(
+        self,
+        smap: StroboscopicMap,
+        grid: Grid,
+        axes: tuple[int, int],
+        pool: cf.Executor | None = None,
+    ) -> None:
+        """``pool``: where a non-periodic attractor's Lyapunov exponent is computed while
+        the analysis goes on (:meth:`lyapunov_done` collects them); without it, at once."""
         self.scale = smap.scale
         self.grid = grid
         self.axes = list(axes)
+        self.pool = pool
         self._trees: dict[int, tuple[np.ndarray, cKDTree]] = {}  # by id(attractor.points)
 
     def _tree(self, a: Attractor) -> cKDTree:
@@ -75,6 +85,15 @@ class StateSpace:
             d, _ = self._tree(a).query(z[finite], p=np.inf, distance_upper_bound=bound, workers=-1)
             hit[finite] = d <= a.radius
         return hit
+
+    @staticmethod
+    def lyapunov_done(known: list[Attractor]) -> None:
+        """Wait for the Lyapunov exponents computed on the pool; each ``motion`` then
+        holds its number (1/s), or why it could not be measured."""
+        for a in known:
+            value = a.motion.get("lyapunov")
+            if isinstance(value, cf.Future):
+                a.motion["lyapunov"] = value.result()
 
     def locate(self, states: np.ndarray, known: list[Attractor]) -> np.ndarray:
         """Per state: the first attractor whose ball holds it, else -1."""
@@ -115,7 +134,11 @@ class StateSpace:
             d, _ = cKDTree(pts / self.scale).query(pts / self.scale, k=2, p=np.inf)
             radius = CHAOS_SPACING * float(np.median(d[:, 1]))
             motion["section_points"] = pts[-256:].tolist()
-            motion["lyapunov"] = largest_exponent(smap, more if more.ok else orbit)
+            last = more if more.ok else orbit
+            if self.pool is None:
+                motion["lyapunov"] = largest_exponent(smap, last)
+            else:  # only reported (no label depends on it): on a worker, meanwhile
+                motion["lyapunov"] = self.pool.submit(largest_exponent, smap, last)
         motion["slice_points"] = np.asarray(motion["poincare_points"])[:, self.axes].tolist()
         cells = np.unique(self.grid.cell_of(pts[:, self.axes]))
         cells = cells[cells != self.grid.sink]
