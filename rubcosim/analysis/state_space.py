@@ -12,6 +12,7 @@ from __future__ import annotations
 import concurrent.futures as cf
 from typing import Any
 
+import numba as nb
 import numpy as np
 from scipy.spatial import cKDTree
 
@@ -21,7 +22,6 @@ from .maps import StroboscopicMap
 
 RADII = (0.05, 0.01, 2e-3)  # state scales: ball radii tried around a periodic attractor
 CHAOS_SPACING = 3.0  # a non-periodic attractor's ball: this many median point spacings
-FEW_POINTS = 64  # an attractor with no more points than this is tested without a tree
 
 
 def test_steps(scale: np.ndarray, axes: list[int]) -> np.ndarray:
@@ -35,6 +35,30 @@ def test_steps(scale: np.ndarray, axes: list[int]) -> np.ndarray:
         d[a], d[b] = sa * scale[a], sb * scale[b]
         steps.append(d[None, :])
     return np.vstack(steps)
+
+
+@nb.njit(cache=True)
+def within_radius(z, pts, radius, hit):  # pragma: no cover - compiled
+    """``hit[i]``: whether row i of ``z`` lies within ``radius`` (max norm) of a row of
+    ``pts`` (sorted by their first column); False for a row that is not finite.  Only
+    the points whose first coordinate is within the radius are compared (a binary
+    search finds them; the window is widened by a part in 1e12 so that rounding of its
+    ends cannot drop one), so many points cost a logarithm, not a pass."""
+    first = pts[:, 0]
+    pad = radius * (1.0 + 1e-12)
+    for i in range(z.shape[0]):
+        row = z[i]
+        if not np.all(np.isfinite(row)):
+            continue
+        j = np.searchsorted(first, row[0] - pad)
+        while j < pts.shape[0] and first[j] <= row[0] + pad:
+            d = 0.0
+            for c in range(row.shape[0]):
+                d = max(d, abs(row[c] - pts[j, c]))
+            if d <= radius:
+                hit[i] = True
+                break
+            j += 1
 
 
 class StateSpace:
@@ -54,14 +78,15 @@ class StateSpace:
         self.grid = grid
         self.axes = list(axes)
         self.pool = pool
-        self._trees: dict[int, tuple[np.ndarray, cKDTree]] = {}  # by id(attractor.points)
+        self._points: dict[int, tuple[np.ndarray, np.ndarray]] = {}  # by id(attractor.points)
 
-    def _tree(self, a: Attractor) -> cKDTree:
-        """The attractor's points' tree (state scales), built once."""
+    def _sorted(self, a: Attractor) -> np.ndarray:
+        """The attractor's points in state scales, sorted by the first state, built once."""
         key = id(a.points)
-        if key not in self._trees or self._trees[key][0] is not a.points:
-            self._trees[key] = (a.points, cKDTree(a.points / self.scale))
-        return self._trees[key][1]
+        if key not in self._points or self._points[key][0] is not a.points:
+            z = a.points / self.scale
+            self._points[key] = (a.points, np.ascontiguousarray(z[np.argsort(z[:, 0])]))
+        return self._points[key][1]
 
     def _near(self, states: np.ndarray, a: Attractor) -> np.ndarray:
         return self._near_scaled(states / self.scale, a)
@@ -69,21 +94,8 @@ class StateSpace:
     def _near_scaled(self, z: np.ndarray, a: Attractor) -> np.ndarray:
         """Whether each state (``z``: in state scales) lies within ``a``'s radius of one
         of its points (max norm); False for a state that is not finite."""
-        if a.points.shape[0] <= FEW_POINTS:
-            # a periodic orbit's few points: directly (a tree query costs more)
-            hit = np.zeros(z.shape[0], dtype=bool)
-            with np.errstate(invalid="ignore"):
-                for p in a.points / self.scale:
-                    hit |= np.max(np.abs(z - p), axis=1) <= a.radius
-            return hit
         hit = np.zeros(z.shape[0], dtype=bool)
-        finite = np.all(np.isfinite(z), axis=1)
-        if np.any(finite):
-            # only whether a point lies within the radius matters: the bound prunes the
-            # search (a farther state costs a few tree nodes, not a nearest-point search)
-            bound = np.nextafter(a.radius, np.inf)
-            d, _ = self._tree(a).query(z[finite], p=np.inf, distance_upper_bound=bound, workers=-1)
-            hit[finite] = d <= a.radius
+        within_radius(np.ascontiguousarray(z), self._sorted(a), float(a.radius), hit)
         return hit
 
     @staticmethod
