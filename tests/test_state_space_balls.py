@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from rubcosim.analysis.state_space import within_radius
+from rubcosim.analysis.state_space import nearest_spacings, within_radius
 
 
 def _direct(z: np.ndarray, pts: np.ndarray, radius: float) -> np.ndarray:
@@ -35,3 +35,13 @@ def test_the_ball_is_closed_and_states_that_are_not_finite_are_outside():
     z = np.array([[0.125, 0.0], [0.5, 0.375], [0.5 + 0.125, 0.25], [np.nan, 0.0], [np.inf, 0.0]])
     assert _search(z, pts, 0.125).tolist() == [True, True, True, False, False]
     assert _search(z, pts, np.nextafter(0.125, 0.0)).tolist() == [False] * 5
+
+
+def test_nearest_spacings_equal_a_k_d_tree_query():
+    from scipy.spatial import cKDTree
+
+    rng = np.random.default_rng(11)
+    pts = np.vstack([rng.standard_normal((1500, 2)), [[0.5, 0.5], [0.5, 0.5]]])  # a pair
+    pts = np.ascontiguousarray(pts[np.argsort(pts[:, 0])])
+    d, _ = cKDTree(pts).query(pts, k=2, p=np.inf)
+    assert np.array_equal(nearest_spacings(pts), d[:, 1])

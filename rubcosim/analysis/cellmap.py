@@ -37,16 +37,17 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-from scipy.sparse import coo_matrix, csr_matrix
-from scipy.sparse.csgraph import breadth_first_order, connected_components
 
 from .errors import AnalysisError, MapError
 from .maps import StroboscopicMap, admissible
 from .motion import classify
 from .parallel import map_in_chunks
+
+if TYPE_CHECKING:
+    from scipy.sparse import csr_matrix
 
 DEFAULT_CHUNK = 2000  # cells per task
 CELL_MAP_RTOL = 1e-7  # the map's tolerance: cells are far coarser than this
@@ -210,6 +211,10 @@ class Basins:
 
 def transition_graph(image: np.ndarray, sink: int) -> csr_matrix:
     """Cell-to-cell transition probabilities (the sink maps to itself)."""
+    # scipy.sparse here, not at the top: the pursuit and slice methods do not use it,
+    # and importing it costs a tenth of a second of every analysis' start
+    from scipy.sparse import coo_matrix
+
     n_cells, samples = image.shape
     src = np.repeat(np.arange(n_cells), samples)
     rows = np.append(src, sink)
@@ -247,6 +252,8 @@ def persistent_groups(grid: Grid, image: np.ndarray) -> tuple[Any, ...]:
     """The transition graph, its strongly connected components (``comp`` per node,
     ``leaves`` per component), and the persistent groups (closed components other
     than the sink's), largest first."""
+    from scipy.sparse.csgraph import connected_components
+
     graph = transition_graph(image, grid.sink)
     n_comp, comp = connected_components(graph, directed=True, connection="strong")
     coo = graph.tocoo()
@@ -264,6 +271,8 @@ def classify_cells(
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[np.ndarray]]:
     """Given each attractor's cells: which attractors every cell reaches, the cell
     labels (basin, boundary, escape) and the saddle groups."""
+    from scipy.sparse.csgraph import breadth_first_order
+
     attractor_of = np.full(grid.n_cells, -1)
     reach = np.zeros((grid.n_cells, len(attractors)), dtype=bool)
     reverse = graph.T.tocsr()

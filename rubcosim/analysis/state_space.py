@@ -14,7 +14,6 @@ from typing import Any
 
 import numba as nb
 import numpy as np
-from scipy.spatial import cKDTree
 
 from .attractors import CHAOS_KEEP, MATCH_TOL, Attractor, converges_to, largest_exponent
 from .cellmap import Grid, same_motion
@@ -59,6 +58,27 @@ def within_radius(z, pts, radius, hit):  # pragma: no cover - compiled
                 hit[i] = True
                 break
             j += 1
+
+
+@nb.njit(cache=True)
+def nearest_spacings(pts):  # pragma: no cover - compiled
+    """Each point's distance (max norm) to its nearest other point, for ``pts`` sorted
+    by their first column: a sweep outwards from each point that stops where the first
+    coordinate alone is farther than the nearest found."""
+    n = pts.shape[0]
+    out = np.full(n, np.inf)
+    for i in range(n):
+        best = np.inf
+        for step in (-1, 1):
+            j = i + step
+            while 0 <= j < n and abs(pts[j, 0] - pts[i, 0]) <= best:
+                d = 0.0
+                for c in range(pts.shape[1]):
+                    d = max(d, abs(pts[j, c] - pts[i, c]))
+                best = min(best, d)
+                j += step
+        out[i] = best
+    return out
 
 
 class StateSpace:
@@ -143,8 +163,9 @@ class StateSpace:
         else:
             more = smap.orbit(orbit.final_state, keep=CHAOS_KEEP)
             pts = more.points if more.ok else orbit.points
-            d, _ = cKDTree(pts / self.scale).query(pts / self.scale, k=2, p=np.inf)
-            radius = CHAOS_SPACING * float(np.median(d[:, 1]))
+            z = pts / self.scale
+            z = np.ascontiguousarray(z[np.argsort(z[:, 0])])
+            radius = CHAOS_SPACING * float(np.median(nearest_spacings(z)))
             motion["section_points"] = pts[-256:].tolist()
             last = more if more.ok else orbit
             if self.pool is None:
