@@ -36,7 +36,7 @@ def test_steps(scale: np.ndarray, axes: list[int]) -> np.ndarray:
     return np.vstack(steps)
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, parallel=True)
 def within_radius(z, pts, radius, hit):  # pragma: no cover - compiled
     """``hit[i]``: whether row i of ``z`` lies within ``radius`` (max norm) of a row of
     ``pts`` (sorted by their first column); False for a row that is not finite.  Only
@@ -45,7 +45,7 @@ def within_radius(z, pts, radius, hit):  # pragma: no cover - compiled
     ends cannot drop one), so many points cost a logarithm, not a pass."""
     first = pts[:, 0]
     pad = radius * (1.0 + 1e-12)
-    for i in range(z.shape[0]):
+    for i in nb.prange(z.shape[0]):
         row = z[i]
         if not np.all(np.isfinite(row)):
             continue

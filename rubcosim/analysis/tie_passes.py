@@ -126,9 +126,11 @@ def shared_fate(near, r, fate, ok):  # pragma: no cover - compiled
     return f
 
 
-@nb.njit(cache=True)
+# parallel: each sample on its own (the other passes follow the ties, in order); it runs
+# between the tracking's rounds, while the workers wait
+@nb.njit(cache=True, parallel=True)
 def safe_ties(nxt, near, fate, safe):  # pragma: no cover - compiled
     """``safe[u]``: the samples nearest to u's image (row ``near[u]``) all have one fate
     (>= 0); an image outside the region (``nxt[u] < 0``) is exact, so its tie is safe."""
-    for u in range(nxt.shape[0]):
+    for u in nb.prange(nxt.shape[0]):
         safe[u] = nxt[u] < 0 or shared_fate(near, u, fate, None) >= 0
