@@ -12,6 +12,11 @@ the reduction's tail) give the result.  Measured against libm over
 97 % of arguments (``tests/test_trig.py``).  Beyond ``LIMIT`` in magnitude, and
 for inf and NaN, libm's own functions are used.
 
+The functions are compiled on their own, not inlined by numba into each caller: numba's
+inlining of them into every copy of the right-hand sides made a cold compilation a
+quarter longer (``rubcosim run`` on an empty cache 49 -> 63 s) for 2 % of a map's time;
+LLVM still inlines what it finds worth it.
+
 Without numba (the kernels bundled in an FMU run as plain Python) these are
 ``math.cos`` and ``math.sin``: an FMU and the reference then differ by at most
 an ulp in the forcing, far below any tolerance.
@@ -59,7 +64,7 @@ if USE_NUMBA:
 
         return sig, codegen
 
-    @njit(inline="always")
+    @njit
     def _reduce(x):
         """``(r, tail, q)``: x = q pi/2 + r + tail (mod 2 pi), |r| <= pi/4, q in 0..3."""
         k = (x * _INV_PIO2 + _ROUND) - _ROUND
@@ -73,7 +78,7 @@ if USE_NUMBA:
         head = s + tail
         return head, (s - head) + tail, int(k) & 3
 
-    @njit(inline="always")
+    @njit
     def _kernel_sin(x, y):
         """sin(x + y) for |x| <= pi/4, |y| < ulp(x) (fdlibm's __kernel_sin)."""
         z = x * x
@@ -82,7 +87,7 @@ if USE_NUMBA:
         v = z * x
         return x - ((z * (0.5 * y - v * r) - y) - v * _S1)
 
-    @njit(inline="always")
+    @njit
     def _kernel_cos(x, y):
         """cos(x + y) for |x| <= pi/4, |y| < ulp(x) (fdlibm's __kernel_cos)."""
         z = x * x
@@ -92,7 +97,7 @@ if USE_NUMBA:
         w = 1.0 - hz
         return w + (((1.0 - w) - hz) + (z * r - x * y))
 
-    @njit(inline="always")
+    @njit
     def cos(x: float) -> float:
         """cos(x) within 1 ulp of libm's."""
         if not abs(x) <= LIMIT:  # also inf and NaN
@@ -102,7 +107,7 @@ if USE_NUMBA:
         v = _kernel_sin(r, y) if q & 1 else _kernel_cos(r, y)
         return -v if (q + 1) & 2 else v
 
-    @njit(inline="always")
+    @njit
     def sin(x: float) -> float:
         """sin(x) within 1 ulp of libm's."""
         if not abs(x) <= LIMIT:
@@ -113,7 +118,7 @@ if USE_NUMBA:
         v = _kernel_cos(r, y) if q & 1 else _kernel_sin(r, y)
         return -v if q & 2 else v
 
-    @njit(inline="always")
+    @njit
     def cos_sin(x: float) -> tuple[float, float]:
         """(cos(x), sin(x)), each within 1 ulp of libm's, from one reduction."""
         if not abs(x) <= LIMIT:
