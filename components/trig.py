@@ -12,11 +12,6 @@ the reduction's tail) give the result.  Measured against libm over
 97 % of arguments (``tests/test_trig.py``).  Beyond ``LIMIT`` in magnitude, and
 for inf and NaN, libm's own functions are used.
 
-The functions are compiled on their own, not inlined by numba into each caller: numba's
-inlining of them into every copy of the right-hand sides made a cold compilation a
-quarter longer (``rubcosim run`` on an empty cache 49 -> 63 s) for 2 % of a map's time;
-LLVM still inlines what it finds worth it.
-
 Without numba (the kernels bundled in an FMU run as plain Python) these are
 ``math.cos`` and ``math.sin``: an FMU and the reference then differ by at most
 an ulp in the forcing, far below any tolerance.
@@ -51,6 +46,7 @@ _C5 = 2.08757232129817482790e-09
 _C6 = -1.13596475577881948265e-11
 
 if USE_NUMBA:
+    from llvmlite import ir
     from numba import types
     from numba.extending import intrinsic
 
@@ -64,40 +60,89 @@ if USE_NUMBA:
 
         return sig, codegen
 
-    @njit
-    def _reduce(x):
-        """``(r, tail, q)``: x = q pi/2 + r + tail (mod 2 pi), |r| <= pi/4, q in 0..3."""
-        k = (x * _INV_PIO2 + _ROUND) - _ROUND
-        r = fma(-k, _PIO2_HI, x)  # exact: k HI is within a factor 2 of x (Sterbenz)
-        p = -k * _PIO2_MID
-        pe = fma(-k, _PIO2_MID, -p)  # the product's rounding error, exactly
-        s = r + p
-        b = s - r
-        tail = ((r - (s - b)) + (p - b)) + pe  # Knuth's two-sum of r and p, plus pe
-        tail = fma(-k, _PIO2_LO, tail)
-        head = s + tail
-        return head, (s - head) + tail, int(k) & 3
+    # The reduction and the kernels are written as LLVM instructions (numba intrinsics):
+    # they go into every caller as they are, like an inlined function, without numba
+    # typing them again at each of the many copies of the right-hand sides (inlining
+    # them through numba made a cold compilation a quarter longer; calling them
+    # instead cost 3 % of a map).  The operations, and their order, are those of the
+    # formulas in the docstrings: the results are the same, bit for bit
+    # (tests/test_trig.py checks them against a plain numba version).
+    _F64 = ir.DoubleType()
 
-    @njit
-    def _kernel_sin(x, y):
-        """sin(x + y) for |x| <= pi/4, |y| < ulp(x) (fdlibm's __kernel_sin)."""
-        z = x * x
-        w = z * z
-        r = _S2 + z * (_S3 + z * _S4) + z * w * (_S5 + z * _S6)
-        v = z * x
-        return x - ((z * (0.5 * y - v * r) - y) - v * _S1)
+    def _const(v: float) -> ir.Constant:
+        return ir.Constant(_F64, v)
 
-    @njit
-    def _kernel_cos(x, y):
-        """cos(x + y) for |x| <= pi/4, |y| < ulp(x) (fdlibm's __kernel_cos)."""
-        z = x * x
-        w = z * z
-        r = z * (_C1 + z * (_C2 + z * _C3)) + w * w * (_C4 + z * (_C5 + z * _C6))
-        hz = 0.5 * z
-        w = 1.0 - hz
-        return w + (((1.0 - w) - hz) + (z * r - x * y))
+    @intrinsic
+    def _reduce(typingctx, x):  # pragma: no cover - compiled
+        """``(r, tail, q)``: x = q pi/2 + r + tail (mod 2 pi), |r| <= pi/4, q in 0..3:
+        k = (x 2/pi + ROUND) - ROUND; r = fma(-k, HI, x) (exact, Sterbenz);
+        p = -k MID; pe = fma(-k, MID, -p) (p's rounding error); Knuth's two-sum of r and
+        p, plus pe, plus fma(-k, LO, .) makes the tail; q = int(k) & 3."""
+        sig = types.Tuple((types.float64, types.float64, types.int64))(types.float64)
 
-    @njit
+        def codegen(context, b, signature, args):
+            (x,) = args
+            k = b.fsub(b.fadd(b.fmul(x, _const(_INV_PIO2)), _const(_ROUND)), _const(_ROUND))
+            nk = b.fneg(k)
+            r = b.fma(nk, _const(_PIO2_HI), x)
+            p = b.fmul(nk, _const(_PIO2_MID))
+            pe = b.fma(nk, _const(_PIO2_MID), b.fneg(p))
+            s = b.fadd(r, p)
+            bb = b.fsub(s, r)
+            tail = b.fadd(b.fadd(b.fsub(r, b.fsub(s, bb)), b.fsub(p, bb)), pe)
+            tail = b.fma(nk, _const(_PIO2_LO), tail)
+            head = b.fadd(s, tail)
+            low = b.fadd(b.fsub(s, head), tail)
+            q = b.and_(b.fptosi(k, ir.IntType(64)), ir.Constant(ir.IntType(64), 3))
+            return context.make_tuple(b, signature.return_type, [head, low, q])
+
+        return sig, codegen
+
+    @intrinsic
+    def _kernel_sin(typingctx, x, y):  # pragma: no cover - compiled
+        """sin(x + y) for |x| <= pi/4, |y| < ulp(x) (fdlibm's __kernel_sin):
+        z = x x; w = z z; r = S2 + z (S3 + z S4) + z w (S5 + z S6); v = z x;
+        x - ((z (0.5 y - v r) - y) - v S1)."""
+        sig = types.float64(types.float64, types.float64)
+
+        def codegen(context, b, signature, args):
+            x, y = args
+            add, sub, mul = b.fadd, b.fsub, b.fmul
+            z = mul(x, x)
+            w = mul(z, z)
+            r = add(
+                add(_const(_S2), mul(z, add(_const(_S3), mul(z, _const(_S4))))),
+                mul(mul(z, w), add(_const(_S5), mul(z, _const(_S6)))),
+            )
+            v = mul(z, x)
+            inner = sub(mul(z, sub(mul(_const(0.5), y), mul(v, r))), y)
+            return sub(x, sub(inner, mul(v, _const(_S1))))
+
+        return sig, codegen
+
+    @intrinsic
+    def _kernel_cos(typingctx, x, y):  # pragma: no cover - compiled
+        """cos(x + y) for |x| <= pi/4, |y| < ulp(x) (fdlibm's __kernel_cos):
+        z = x x; w = z z; r = z (C1 + z (C2 + z C3)) + w w (C4 + z (C5 + z C6));
+        hz = 0.5 z; u = 1 - hz; u + (((1 - u) - hz) + (z r - x y))."""
+        sig = types.float64(types.float64, types.float64)
+
+        def codegen(context, b, signature, args):
+            x, y = args
+            add, sub, mul = b.fadd, b.fsub, b.fmul
+            z = mul(x, x)
+            w = mul(z, z)
+            r = add(
+                mul(z, add(_const(_C1), mul(z, add(_const(_C2), mul(z, _const(_C3)))))),
+                mul(mul(w, w), add(_const(_C4), mul(z, add(_const(_C5), mul(z, _const(_C6)))))),
+            )
+            hz = mul(_const(0.5), z)
+            u = sub(_const(1.0), hz)
+            return add(u, add(sub(sub(_const(1.0), u), hz), sub(mul(z, r), mul(x, y))))
+
+        return sig, codegen
+
+    @njit(inline="always")
     def cos(x: float) -> float:
         """cos(x) within 1 ulp of libm's."""
         if not abs(x) <= LIMIT:  # also inf and NaN
@@ -107,7 +152,7 @@ if USE_NUMBA:
         v = _kernel_sin(r, y) if q & 1 else _kernel_cos(r, y)
         return -v if (q + 1) & 2 else v
 
-    @njit
+    @njit(inline="always")
     def sin(x: float) -> float:
         """sin(x) within 1 ulp of libm's."""
         if not abs(x) <= LIMIT:
@@ -118,7 +163,7 @@ if USE_NUMBA:
         v = _kernel_cos(r, y) if q & 1 else _kernel_sin(r, y)
         return -v if q & 2 else v
 
-    @njit
+    @njit(inline="always")
     def cos_sin(x: float) -> tuple[float, float]:
         """(cos(x), sin(x)), each within 1 ulp of libm's, from one reduction."""
         if not abs(x) <= LIMIT:
