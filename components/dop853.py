@@ -18,12 +18,8 @@ from .jit import njit
 
 N_STAGES = _dop.N_STAGES
 N_EXT = _dop.N_STAGES_EXTENDED
-A = np.ascontiguousarray(_dop.A)
-B = np.ascontiguousarray(_dop.B)
+B = np.ascontiguousarray(_dop.B)  # the tangent's trace weights; the sums: dop853_sums
 C = np.ascontiguousarray(_dop.C)
-E3 = np.ascontiguousarray(_dop.E3)
-E5 = np.ascontiguousarray(_dop.E5)
-D = np.ascontiguousarray(_dop.D)
 SAFETY = 0.9
 MIN_FACTOR = 0.2
 MAX_FACTOR = 10.0
@@ -98,29 +94,18 @@ def next_step(err, h, rejected):
 @njit(inline="always")
 def dense_poly(x, F, c):
     """The polynomial part of scipy's DOP853 dense output of component ``c`` at the
-    step fraction ``x = (t - t_old) / h`` (the output is ``y_old[c]`` plus this)."""
-    npow = F.shape[0]
-    if npow == 7:
-        # scipy's seven rows, written out: the same operations in the same order as the
-        # loop below (bit for bit), without its index arithmetic and select per row, so
-        # the processor overlaps the components' chains (event location evaluates the
-        # dense output a dozen times per event)
-        y = 1.0 - x
-        acc = (0.0 + F[6, c]) * x
-        acc = (acc + F[5, c]) * y
-        acc = (acc + F[4, c]) * x
-        acc = (acc + F[3, c]) * y
-        acc = (acc + F[2, c]) * x
-        acc = (acc + F[1, c]) * y
-        return (acc + F[0, c]) * x
-    acc = 0.0
-    for i in range(npow):
-        acc += F[npow - 1 - i, c]
-        if i % 2 == 0:
-            acc *= x
-        else:
-            acc *= 1.0 - x
-    return acc
+    step fraction ``x = (t - t_old) / h`` (the output is ``y_old[c]`` plus this); ``F``
+    holds scipy's seven rows (:func:`dense_from_stages`), evaluated as scipy's loop
+    does, in the same order, written out (event location evaluates it a dozen times per
+    event)."""
+    y = 1.0 - x
+    acc = (0.0 + F[6, c]) * x
+    acc = (acc + F[5, c]) * y
+    acc = (acc + F[4, c]) * x
+    acc = (acc + F[3, c]) * y
+    acc = (acc + F[2, c]) * x
+    acc = (acc + F[1, c]) * y
+    return (acc + F[0, c]) * x
 
 
 @njit(inline="always")
