@@ -22,7 +22,6 @@ from rubcosim.components.dop853 import (
     next_step,
     solution_point,
     stage_point,
-    workspace,
 )
 from rubcosim.components.kernels import all_finite
 
@@ -38,8 +37,6 @@ from .core import (
     STATUS_STEP_TOO_SMALL,
     after_step,
     needs_dense,
-    new_event_state,
-    new_workspace,
     record_point,
 )
 from .event_search import (
@@ -51,9 +48,14 @@ from .history import (
     full_rhs,
     next_breakpoint,
 )
-from .system import N_DELAYED, N_EVENTS
+from .stack_arrays import stack_floats, stack_ints, stack_matrix
+from .system import MAX_STATES, N_DELAYED, N_EVENTS
 from .tangent import tangent_after, tangent_step
 from .unowned import keep_alive, unowned
+
+N_DENSE = 7  # rows of DOP853's dense-output coefficients (dop853.dense_from_stages)
+K_CAPACITY = N_EXT * MAX_STATES
+F_CAPACITY = N_DENSE * MAX_STATES
 
 
 @nb.njit(cache=True)
@@ -146,20 +148,39 @@ def integrate(y0, mode, t0, t_end, p, ip, tol, out, hist, dde, y_final, tan):
              unowned(evlog[4]))  # fmt: skip
     out, dde = (t_eval, rec, evlog, cnt), (queue, qmeta)
     n = y0.shape[0]
-    # The step loop works on views that numba does not reference-count (unowned);
-    # ``owners`` keeps the arrays themselves alive until the end of the function.
-    owners = (y0.copy(), workspace(n), np.empty(n), np.empty(N_DELAYED), new_event_state(),
-              new_workspace(n, rec.shape[1]), np.empty(rec.shape[1]))  # fmt: skip
-    y, stages, y_next, yd, ev_state, event_work, obuf = owners
-    y, y_next, yd = unowned(y), unowned(y_next), unowned(yd)
-    K, F, f, f_new = unowned(stages[0]), unowned(stages[1]), unowned(stages[2]), unowned(stages[3])
-    y_new, ytmp = unowned(stages[4]), unowned(stages[5])
-    g_a, side, dirs, rates = (unowned(ev_state[0]), unowned(ev_state[1]),
-                              unowned(ev_state[2]), unowned(ev_state[3]))  # fmt: skip
-    g_b, dirs_b, rates_b = unowned(ev_state[4]), unowned(ev_state[5]), unowned(ev_state[6])
-    work = (unowned(event_work[0]), unowned(event_work[1]), unowned(event_work[2]),
-            unowned(event_work[3]), unowned(event_work[4]), unowned(event_work[5]))  # fmt: skip
-    obuf = unowned(obuf)
+    if n > MAX_STATES:
+        raise ValueError("integrate: more states than layout.MAX_STATES")
+    # The step loop's scratch arrays live on this function's stack: no allocation, and
+    # the optimiser knows that none of them overlaps another (stack_arrays).
+    y, y_next, y_new = (
+        stack_floats(MAX_STATES, n),
+        stack_floats(MAX_STATES, n),
+        stack_floats(MAX_STATES, n),
+    )
+    f, f_new, ytmp = (
+        stack_floats(MAX_STATES, n),
+        stack_floats(MAX_STATES, n),
+        stack_floats(MAX_STATES, n),
+    )
+    K, F = stack_matrix(K_CAPACITY, N_EXT, n), stack_matrix(F_CAPACITY, N_DENSE, n)
+    yd = stack_floats(N_DELAYED, N_DELAYED)
+    for i in range(n):
+        y[i] = y0[i]
+    g_a, g_b = stack_floats(N_EVENTS, N_EVENTS), stack_floats(N_EVENTS, N_EVENTS)
+    side, dirs, rates = (
+        stack_ints(N_EVENTS, N_EVENTS),
+        stack_ints(N_EVENTS, N_EVENTS),
+        stack_ints(N_EVENTS, N_EVENTS),
+    )
+    dirs_b, rates_b = stack_ints(N_EVENTS, N_EVENTS), stack_ints(N_EVENTS, N_EVENTS)
+    for k in range(N_EVENTS):
+        side[k], dirs[k], rates[k], dirs_b[k], rates_b[k] = 0, 0, 0, 0, 0
+    # after_step's scratch (core.new_workspace's arrays); the outputs' two on the heap
+    owners = (np.empty(rec.shape[1]), np.empty(rec.shape[1]))
+    work = (stack_floats(MAX_STATES, n), stack_floats(N_DELAYED, N_DELAYED), unowned(owners[0]),
+            stack_floats(N_EVENTS, N_EVENTS), stack_ints(N_EVENTS, N_EVENTS),
+            stack_ints(N_EVENTS, N_EVENTS))  # fmt: skip
+    obuf = unowned(owners[1])
     t = t0
     ev = (g_a, side, dirs, rates, g_b)  # what after_step reads and updates
     forced_slot, forced_side = -1, 0

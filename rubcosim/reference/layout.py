@@ -173,6 +173,9 @@ if LAYOUT.roles[0] != "rotor" or any(
     raise ImportError("the registry must list the rotor types first, disc states first")
 N_P, N_IP = LAYOUT.n_p, LAYOUT.n_ip
 globals().update(LAYOUT.constants)
+# The most states a system can have: every state slot of the rotor family, or the
+# largest hybrid unit type (the length of the engines' scratch arrays on the stack).
+MAX_STATES = max(len(LAYOUT.ip_state), *(len(t.states) for t in REGISTRY if t.hybrid))
 
 __all__ = [
     *LAYOUT.constants,
@@ -186,6 +189,7 @@ __all__ = [
     "KIND_RELEASE",
     "KIND_SLIP",
     "LAYOUT",
+    "MAX_STATES",
     "MODE_STUCK_LOWER",
     "MODE_STUCK_UPPER",
     "N_DELAYED",
