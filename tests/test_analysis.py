@@ -122,6 +122,21 @@ def test_floquet_of_a_linear_oscillator_matches_its_closed_form():
     assert np.allclose(found, [expected.conjugate(), expected], atol=1e-7)
 
 
+def test_floquet_stops_when_newton_leaves_its_box():
+    # the linear oscillator's fixed point (closed form: the forced response at t = 0,
+    # x = -3 / (9 + 0.04) ~ -0.33) from a start far from it: Newton's first step lands on
+    # it (the map is affine), outside a box that excludes it, inside one that holds it
+    smap = StroboscopicMap(
+        load_scenario(DUFFING, ["oscillator.cubic_stiffness=0.0", 'oscillator.stop="none"']).system,
+        rtol=FLOQUET_RTOL,
+    )
+    start = np.array([0.5, 0.5])
+    with pytest.raises(MapError, match="left the box"):
+        floquet(smap, start, 1, box=(np.array([0.0, 0.0]), np.array([1.0, 1.0])))
+    f = floquet(smap, start, 1, box=(np.array([-1.0, -1.0]), np.array([1.0, 1.0])))
+    assert f.state[0] == pytest.approx(-3.0 / 9.04, abs=1e-9)
+
+
 def test_floquet_refuses_a_grazing_orbit():
     # a free orbit that just touches the barrier: perturbations change its impacts
     smap = duffing_map(["oscillator.cubic_stiffness=0.0"], rtol=FLOQUET_RTOL)

@@ -95,11 +95,15 @@ def floquet(
     mode: int | None = None,
     tol: float = 1e-10,
     max_iter: int = 20,
+    box: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> Floquet:
     """Refine the n-periodic fixed point near ``y_guess`` and return its multipliers.
 
     ``smap`` should be built with a tight tolerance (``FLOQUET_RTOL``).  ``tol`` is
-    the Newton tolerance on ``|P^n(y) - y|`` in state scales.
+    the Newton tolerance on ``|P^n(y) - y|`` in state scales.  ``box = (lo, hi)``: a
+    Newton iterate outside it ends the search with a :class:`MapError` (a search for
+    the fixed points of a region: an iterate that leaves it has diverged, and
+    integrating from far out, where a stiffening spring is very fast, costs many steps).
     """
     if not (isinstance(period, int) and period >= 1):
         raise MapError(f"period = {period!r} must be an integer >= 1")
@@ -115,6 +119,8 @@ def floquet(
             break
         J, _ = jacobian(smap, y, period, m0)
         y = y - np.linalg.solve(J - np.eye(y.size), r)
+        if box is not None and not np.all((box[0] <= y) & (y <= box[1])):
+            raise MapError(f"Newton left the box {box[0]} .. {box[1]} at {y}")
     J, m = jacobian(smap, y, period, m0)
     mult = np.linalg.eigvals(J)
     mult = mult[np.argsort(-np.abs(mult))]

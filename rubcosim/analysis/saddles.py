@@ -20,6 +20,7 @@ map); stable ones cross-check the periodic attractors.
 from __future__ import annotations
 
 import concurrent.futures as cf
+from functools import partial
 from typing import Any
 
 import numpy as np
@@ -92,15 +93,24 @@ def fixed_point_candidates(
     return points[cand * samples + best[cand]]
 
 
-def _newton(tight: StroboscopicMap, starts: np.ndarray) -> list[Floquet | None]:
+def newton_box(grid: Grid) -> tuple[np.ndarray, np.ndarray]:
+    """Where Newton's iterates may go: the region widened by its own size on each side
+    (only fixed points inside the region are kept; an iterate far outside has diverged)."""
+    w, h = grid.x1 - grid.x0, grid.v1 - grid.v0
+    return np.array([grid.x0 - w, grid.v0 - h]), np.array([grid.x1 + w, grid.v1 + h])
+
+
+def _newton(
+    tight: StroboscopicMap, starts: np.ndarray, box: tuple[np.ndarray, np.ndarray] | None = None
+) -> list[Floquet | None]:
     """Newton from each start (one task): the fixed point and its multipliers, or None
-    where Newton stops on grazing or a singular step."""
+    where Newton stops on grazing, a singular step or an iterate outside ``box``."""
     out: list[Floquet | None] = []
     for y in starts:
         try:
-            out.append(floquet(tight, y, 1, tol=NEWTON_TOL, max_iter=NEWTON_ITER))
+            out.append(floquet(tight, y, 1, tol=NEWTON_TOL, max_iter=NEWTON_ITER, box=box))
         except (MapError, np.linalg.LinAlgError):
-            out.append(None)  # grazing or a singular Newton step: no fixed point from here
+            out.append(None)  # grazing, a singular step, diverged: no fixed point from here
     return out
 
 
@@ -131,7 +141,8 @@ class FixedPointSearch:
 
     def _submit(self, starts: np.ndarray) -> tuple[list[cf.Future], int]:
         n = min(self.parts, max(1, starts.shape[0]))
-        return submit_interleaved(self.pool, n, _newton, self.tight, starts), starts.shape[0]
+        newton = partial(_newton, box=newton_box(self.grid))
+        return submit_interleaved(self.pool, n, newton, self.tight, starts), starts.shape[0]
 
     @staticmethod
     def _gather(submitted: tuple[list[cf.Future], int]) -> list[Floquet | None]:
