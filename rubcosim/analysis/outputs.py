@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 from typing import Any
 
@@ -168,21 +169,33 @@ def _plot_sweep(result: SweepResult, path: Path, state: int | str) -> None:
 
 
 def write_basins(basins: Basins, tmp: Path, scenario_name: str, info: dict[str, Any]) -> None:
-    """``basins.npz``, ``report.json`` and ``basins.png``."""
+    """``basins.npz``, ``report.json`` and ``basins.png``.  The npz is compressed on a
+    thread meanwhile (zlib releases the interpreter lock): the figure is drawn in the
+    same time."""
     g = basins.grid
-    np.savez_compressed(
-        tmp / "basins.npz",
-        labels=basins.labels,
-        attractor_of=basins.attractor_of,
-        reach=basins.reach,
-        image=basins.image.astype(np.int32),
-        centres=g.centres(),
-        grid=np.array([g.nx, g.nv]),
-        region=np.array([g.x0, g.x1, g.v0, g.v1]),
-        slice=np.array(info.get("slice") or info.get("state_names", ["x", "x'"])[:2]),
-        saddle_cells=np.concatenate(basins.saddles) if basins.saddles else np.zeros(0, int),
+    arrays = {
+        "labels": basins.labels,
+        "attractor_of": basins.attractor_of,
+        "reach": basins.reach,
+        "image": basins.image.astype(np.int32),
+        "centres": g.centres(),
+        "grid": np.array([g.nx, g.nv]),
+        "region": np.array([g.x0, g.x1, g.v0, g.v1]),
+        "slice": np.array(info.get("slice") or info.get("state_names", ["x", "x'"])[:2]),
+        "saddle_cells": np.concatenate(basins.saddles) if basins.saddles else np.zeros(0, int),
         **({} if basins.shares is None else {"shares": basins.shares, "fates": basins.fates}),
-    )
+    }
+    with ThreadPoolExecutor(max_workers=1) as npz:
+        written = npz.submit(np.savez_compressed, tmp / "basins.npz", **arrays)
+        _write_basins_report(basins, tmp, scenario_name, info)
+        written.result()  # its error, if any, is raised here
+
+
+def _write_basins_report(
+    basins: Basins, tmp: Path, scenario_name: str, info: dict[str, Any]
+) -> None:
+    """``report.json`` and ``basins.png``."""
+    g = basins.grid
     counts = basins.counts()
     attractors = []
     for k in range(basins.n_attractors):
