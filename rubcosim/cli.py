@@ -243,11 +243,29 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     return EXIT_RUN_FAILED if any(result.failed.values()) else 0
 
 
+def _run_basins(args: argparse.Namespace, scenario: Any, opts: dict[str, Any], ckpt: Any) -> Any:
+    return api.basins(
+        scenario,
+        opts["grid"],
+        opts["samples"],
+        opts["region"],
+        seed=opts["seed"],
+        rtol=args.rtol,
+        workers=args.workers,
+        scheduler=args.scheduler,
+        checkpoint_dir=ckpt,
+        progress=not args.no_progress,
+        method=opts["method"],
+        slice=opts["slice"],
+    )
+
+
 def cmd_basins(args: argparse.Namespace) -> int:
     from .analysis.cellmap import Grid
     from .analysis.outputs import checkpoint_dir, write_basins
     from .analysis.published import basins_summary
     from .analysis.slices import parse_slice
+    from .figure_process import FigureProcess
 
     scenario = api.load(args.scenario, args.set)
     # the flags, else the scenario's [basins] table; bad input is refused before --out
@@ -266,21 +284,12 @@ def cmd_basins(args: argparse.Namespace) -> int:
         raise AnalysisError(f"--method {opts['method']!r}: one of {', '.join(BASIN_METHODS)}")
     out = check_output_dir(args.out)
     ckpt = checkpoint_dir(out)
-    basins = api.basins(
-        scenario,
-        opts["grid"],
-        opts["samples"],
-        opts["region"],
-        seed=opts["seed"],
-        rtol=args.rtol,
-        workers=args.workers,
-        scheduler=args.scheduler,
-        checkpoint_dir=ckpt,
-        progress=not args.no_progress,
-        method=opts["method"],
-        slice=opts["slice"],
-    )
-    write_directory(out, lambda tmp: write_basins(basins, tmp, scenario.name, basins.info))
+    # the figure's helper process: forked now, before the analysis starts its workers
+    with FigureProcess() as figures:
+        basins = _run_basins(args, scenario, opts, ckpt)
+        write_directory(
+            out, lambda tmp: write_basins(basins, tmp, scenario.name, basins.info, figures)
+        )
     shutil.rmtree(ckpt, ignore_errors=True)
     c = basins.counts()
     labels = ", ".join(m["label"] for m in basins.motions)

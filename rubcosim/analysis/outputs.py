@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import copy
 import json
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
@@ -168,10 +169,13 @@ def _plot_sweep(result: SweepResult, path: Path, state: int | str) -> None:
     plt.close(fig)
 
 
-def write_basins(basins: Basins, tmp: Path, scenario_name: str, info: dict[str, Any]) -> None:
-    """``basins.npz``, ``report.json`` and ``basins.png``.  The npz is compressed on a
-    thread meanwhile (zlib releases the interpreter lock): the figure is drawn in the
-    same time."""
+def write_basins(
+    basins: Basins, tmp: Path, scenario_name: str, info: dict[str, Any], figures: Any = None
+) -> None:
+    """``basins.npz``, ``report.json`` and ``basins.png``, the three at once: the npz is
+    compressed on a thread (zlib releases the interpreter lock) and the figure drawn by
+    ``figures`` (a :class:`rubcosim.figure_process.FigureProcess`: another process) when
+    given, else here."""
     g = basins.grid
     arrays = {
         "labels": basins.labels,
@@ -185,16 +189,26 @@ def write_basins(basins: Basins, tmp: Path, scenario_name: str, info: dict[str, 
         "saddle_cells": np.concatenate(basins.saddles) if basins.saddles else np.zeros(0, int),
         **({} if basins.shares is None else {"shares": basins.shares, "fates": basins.fates}),
     }
+    names = info.get("slice") or info.get("state_names", ["x", "x'"])
     with ThreadPoolExecutor(max_workers=1) as npz:
         written = npz.submit(np.savez_compressed, tmp / "basins.npz", **arrays)
+        if figures is not None:
+            # what the figure needs, without the per-sample arrays (megabytes to pickle)
+            light = copy.copy(basins)
+            light.image = light.fates = light.shares = None
+            figures.submit(_plot_basins, light, tmp / "basins.png", names)
         _write_basins_report(basins, tmp, scenario_name, info)
+        if figures is None:
+            _plot_basins(basins, tmp / "basins.png", names)
+        else:
+            figures.wait()
         written.result()  # its error, if any, is raised here
 
 
 def _write_basins_report(
     basins: Basins, tmp: Path, scenario_name: str, info: dict[str, Any]
 ) -> None:
-    """``report.json`` and ``basins.png``."""
+    """``report.json``."""
     g = basins.grid
     counts = basins.counts()
     attractors = []
@@ -234,8 +248,6 @@ def _write_basins_report(
             **info,
         },
     )
-    names = info.get("slice") or info.get("state_names", ["x", "x'"])
-    _plot_basins(basins, tmp / "basins.png", names)
 
 
 def _pursuit_report(basins: Basins, scenario_name: str) -> dict[str, Any]:
