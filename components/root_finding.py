@@ -41,11 +41,17 @@ def bracket(ta: float, fa: float, tb: float, fb: float, xtol: float) -> np.ndarr
     """The locator's state for a bracket ``[ta, tb]`` with ``fa > 0 >= fb``; ``xtol`` is
     the width (same unit as t) below which the bracket counts as located."""
     s = np.empty(STATE_SIZE)
+    start(s, ta, fa, tb, fb, xtol)
+    return s
+
+
+@njit(inline="always")
+def start(s: np.ndarray, ta: float, fa: float, tb: float, fb: float, xtol: float) -> None:
+    """:func:`bracket` into the caller's array ``s`` (``STATE_SIZE`` long)."""
     s[X_PRE], s[X_CUR], s[F_PRE], s[F_CUR] = ta, tb, fa, fb
     s[X_BLK], s[F_BLK] = ta, fa
     s[S_PRE] = s[S_CUR] = tb - ta
     s[X_TOL] = xtol
-    return s
 
 
 @njit(inline="always")

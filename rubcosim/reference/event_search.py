@@ -14,11 +14,19 @@ import math
 import numba as nb
 import numpy as np
 
-from rubcosim.components.root_finding import F_CUR, MAX_TRIALS, X_CUR, advance, bracket, crossed_end
+from rubcosim.components.root_finding import (
+    F_CUR,
+    MAX_TRIALS,
+    STATE_SIZE,
+    X_CUR,
+    advance,
+    crossed_end,
+    start,
+)
 
 from .history import delayed_state, dense_eval
+from .stack_arrays import stack_floats
 from .system import N_EVENTS, events
-from .unowned import keep_alive, unowned
 
 
 @nb.njit(cache=True, inline="always")
@@ -51,15 +59,13 @@ def locate(slot, sgn, ta, fa, tb, fb, seg, ctx, hist, scratch):
     """Bracket [ta, tb] of a zero of ``sgn * g_slot`` (fa > 0 >= fb), located to
     round-off of t; returns the end point on the crossed side (sgn * g <= 0), so
     the event is known to have happened there."""
-    owner = bracket(ta, fa, tb, fb, 4.0 * np.finfo(np.float64).eps * max(abs(ta), abs(tb), 1.0))
-    s = unowned(owner)  # not reference-counted at every trial (owner is kept below)
+    s = stack_floats(STATE_SIZE, STATE_SIZE)  # the locator's state: no allocation
+    start(s, ta, fa, tb, fb, 4.0 * np.finfo(np.float64).eps * max(abs(ta), abs(tb), 1.0))
     for _ in range(MAX_TRIALS):
         if advance(s):
             break
         s[F_CUR] = sgn * event_value(slot, s[X_CUR], seg, ctx, hist, scratch)
-    located = crossed_end(s)
-    keep_alive(owner)
-    return located
+    return crossed_end(s)
 
 
 @nb.njit(cache=True)
