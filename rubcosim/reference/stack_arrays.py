@@ -51,30 +51,28 @@ def _capacity(capacity) -> int:
     return capacity.literal_value
 
 
-@intrinsic
-def stack_floats(typingctx, capacity, size):  # pragma: no cover - compiled
-    """A float64 vector of ``size`` elements on the stack (``size <= capacity``)."""
+def _vector(capacity, size, dtype):
+    """Typing and code of a stack vector of ``dtype`` (the intrinsics below)."""
     cap = _capacity(capacity)
-    arrty = types.Array(types.float64, 1, "C")
+    arrty = types.Array(dtype, 1, "C")
 
     def codegen(context, builder, sig, args):
         n = context.cast(builder, args[1], sig.args[1], types.intp)
         return _stack_array(context, builder, arrty, cap, [n])
 
     return arrty(capacity, size), codegen
+
+
+@intrinsic
+def stack_floats(typingctx, capacity, size):  # pragma: no cover - compiled
+    """A float64 vector of ``size`` elements on the stack (``size <= capacity``)."""
+    return _vector(capacity, size, types.float64)
 
 
 @intrinsic
 def stack_ints(typingctx, capacity, size):  # pragma: no cover - compiled
     """An int64 vector of ``size`` elements on the stack (``size <= capacity``)."""
-    cap = _capacity(capacity)
-    arrty = types.Array(types.int64, 1, "C")
-
-    def codegen(context, builder, sig, args):
-        n = context.cast(builder, args[1], sig.args[1], types.intp)
-        return _stack_array(context, builder, arrty, cap, [n])
-
-    return arrty(capacity, size), codegen
+    return _vector(capacity, size, types.int64)
 
 
 @intrinsic
