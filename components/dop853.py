@@ -18,6 +18,7 @@ from .jit import njit
 
 N_STAGES = _dop.N_STAGES
 N_EXT = _dop.N_STAGES_EXTENDED
+N_DENSE = 7  # rows of the dense-output coefficients F (dense_from_stages, dense_poly)
 B = np.ascontiguousarray(_dop.B)  # the tangent's trace weights; the sums: dop853_sums
 C = np.ascontiguousarray(_dop.C)
 SAFETY = 0.9
@@ -68,7 +69,8 @@ def solution_point(K, y, h, y_new):
 
 @njit(inline="always")
 def dense_from_stages(h, y_old, y_new, f_new, K, F):
-    """scipy's DOP853 dense-output coefficients ``F`` (7 x n) from all ``N_EXT`` stages."""
+    """scipy's DOP853 dense-output coefficients ``F`` (``N_DENSE`` x n) from all ``N_EXT``
+    stages."""
     for i in range(y_old.shape[0]):
         delta = y_new[i] - y_old[i]
         F[0, i] = delta
@@ -124,7 +126,7 @@ def workspace(n):
     start and end, the trial solution, a stage point and a derivative buffer."""
     return (
         np.empty((N_EXT, n)),
-        np.empty((7, n)),
+        np.empty((N_DENSE, n)),
         np.empty(n),
         np.empty(n),
         np.empty(n),

@@ -79,7 +79,12 @@ def test_a_capacity_that_is_not_a_constant_is_refused_when_compiled() -> None:
 
 
 def test_max_states_covers_every_assembled_system() -> None:
+    # every bundled scenario's system fits the engines' stack arrays, and so does every
+    # rotor-family system (at most one state per slot of the layout) and hybrid type
+    import rubcosim as rc
     from rubcosim.components.hybrid_dispatch import hybrid_types
 
-    assert len(LAYOUT.ip_state) <= MAX_STATES
+    sizes = [rc.load(name).system.n_state for name in rc.scenarios()]
+    assert max(sizes) <= MAX_STATES
     assert all(len(t.states) <= MAX_STATES for t in hybrid_types())
+    assert len(LAYOUT.ip_state) <= MAX_STATES

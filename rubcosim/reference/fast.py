@@ -14,6 +14,7 @@ import numba as nb
 import numpy as np
 
 from rubcosim.components.dop853 import (
+    N_DENSE,
     N_EXT,
     N_STAGES,
     C,
@@ -53,7 +54,6 @@ from .system import MAX_STATES, N_DELAYED, N_EVENTS
 from .tangent import tangent_after, tangent_step
 from .unowned import keep_alive, unowned
 
-N_DENSE = 7  # rows of DOP853's dense-output coefficients (dop853.dense_from_stages)
 K_CAPACITY = N_EXT * MAX_STATES
 F_CAPACITY = N_DENSE * MAX_STATES
 
