@@ -31,16 +31,25 @@ if USE_NUMBA:
 
 
 def njit(
-    function: Callable[..., Any] | None = None, *, inline: str = "never"
+    function: Callable[..., Any] | None = None, *, inline: str = "never", borrows: bool = False
 ) -> Callable[..., Any]:
     """``numba.njit(cache=True)`` when numba is in use, else ``function`` itself.
 
     ``inline="always"`` inlines a small kernel into its callers at numba's IR
     level (the stage arithmetic of a Runge-Kutta step, called 12 times a step);
     used bare (``@njit``) or with options (``@njit(inline="always")``).
+
+    ``borrows=True`` is for a kernel that only borrows the arrays it is given: it
+    allocates none and keeps none after it returns (its callers own them all).  It is
+    compiled without numba's reference counting (numba's ``_nrt`` option), so a call
+    does not pay a runtime call per array argument on entry and another on exit: an
+    event search called with a few dozen arrays spent more time there than in its
+    arithmetic.  Numba refuses to compile such a kernel if it allocates.
     """
     if function is None:
-        return lambda f: njit(f, inline=inline)
+        return lambda f: njit(f, inline=inline, borrows=borrows)
     if not USE_NUMBA:
         return function
+    if borrows:
+        return _numba.njit(cache=True, inline=inline, _nrt=False)(function)
     return _numba.njit(cache=True, inline=inline)(function)

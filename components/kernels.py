@@ -5,6 +5,8 @@
   time derivatives at the step's start (FMI 2.0 input derivatives), evaluated
   inside the step.
 * :func:`all_finite`: whether a state is finite, without allocating.
+* :func:`hypot`: ``sqrt(x^2 + y^2)`` without overflow, correctly rounded in nearly
+  every case, compiled inline.
 """
 
 from __future__ import annotations
@@ -44,3 +46,55 @@ def all_finite(y: np.ndarray, n: int) -> bool:
         if not math.isfinite(y[i]):
             return False
     return True
+
+
+# hypot's scalings (glibc's e_hypot.c): inputs beyond these are scaled by SCALE first
+_HYPOT_LARGE = 2.0**511
+_HYPOT_TINY = 2.0**-511
+_HYPOT_SCALE = 2.0**-600
+_HYPOT_EPS = 2.0**-54
+
+
+@njit(inline="always")
+def _hypot_kernel(ax: float, ay: float) -> float:
+    """``sqrt(ax^2 + ay^2)`` for ``ax >= ay > 0`` in range, with one correction step."""
+    h = math.sqrt(ax * ax + ay * ay)
+    if h <= 2.0 * ay:
+        delta = h - ay
+        t1 = ax * (2.0 * delta - ax)
+        t2 = (delta - 2.0 * (ax - ay)) * delta
+    else:
+        delta = h - ax
+        t1 = 2.0 * delta * (ax - 2.0 * ay)
+        t2 = (4.0 * delta - ay) * ay + delta * delta
+    return h - (t1 + t2) / (2.0 * h)
+
+
+@njit(inline="always")
+def hypot(x: float, y: float) -> float:
+    """``sqrt(x^2 + y^2)`` without overflow or underflow: glibc's algorithm (2.35,
+    e_hypot.c, the build without fused multiply-add), the same result bit for bit as
+    the ``math.hypot`` numba calls there.  Written out so that it compiles inline: the
+    contact geometry evaluates it at every step and a dozen times per impact, where a
+    libm call cost a rotor run 8 % of its time.  A bare ``sqrt(x*x + y*y)`` is cheaper
+    still but differs in the last bit, and a co-simulation's communication points move
+    with that bit."""
+    if math.isinf(x) or math.isinf(y):
+        return math.inf
+    if math.isnan(x) or math.isnan(y):
+        return x + y
+    x = abs(x)
+    y = abs(y)
+    ax = y if x < y else x
+    ay = x if x < y else y
+    if ax > _HYPOT_LARGE:
+        if ay <= ax * _HYPOT_EPS:
+            return ax + ay
+        return _hypot_kernel(ax * _HYPOT_SCALE, ay * _HYPOT_SCALE) / _HYPOT_SCALE
+    if ay < _HYPOT_TINY:
+        if ax >= ay / _HYPOT_EPS:
+            return ax + ay
+        return _hypot_kernel(ax / _HYPOT_SCALE, ay / _HYPOT_SCALE) * _HYPOT_SCALE
+    if ay <= ax * _HYPOT_EPS:
+        return ax + ay
+    return _hypot_kernel(ax, ay)

@@ -17,6 +17,7 @@ from collections.abc import Mapping
 from typing import Any
 
 from .jit import njit
+from .kernels import hypot
 from .parameters import nonnegative, planar_initial_state, positive, real
 
 # Contact modes of a disc on a stator: free, sliding with positive or negative slip,
@@ -65,7 +66,7 @@ def contact_geometry(rx: float, ry: float) -> tuple[float, float, float]:
     At the exact centre the normal is undefined; +x is returned so that the
     caller never divides by zero (the gap is then the full clearance).
     """
-    dist = math.hypot(rx, ry)
+    dist = hypot(rx, ry)
     if dist == 0.0:
         return 0.0, 1.0, 0.0
     return dist, rx / dist, ry / dist

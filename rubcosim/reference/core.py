@@ -12,6 +12,8 @@ from __future__ import annotations
 import numba as nb
 import numpy as np
 
+from rubcosim.components.jit import njit
+
 from .event_search import event_candidate, find_event, sides_from
 from .history import (
     delayed_state,
@@ -47,7 +49,7 @@ def record_row(t, y, mode, p, ip, hist, yd, obuf, rec, i):
         rec[i, c] = obuf[c]
 
 
-@nb.njit(cache=True)
+@njit(borrows=True)
 def record(t_lo, t_hi, t_old, h, y_old, F, mode, p, ip, hist, t_eval, i_eval, rec, ybuf, yd, obuf):
     """Record outputs at the grid times in (t_lo, t_hi]; returns the next grid index."""
     while i_eval < t_eval.shape[0] and t_eval[i_eval] <= t_hi:
@@ -128,7 +130,7 @@ def needs_dense(t_b, hist, g_a, side, dirs, rates, g_b, t_eval, cnt):
     return event_candidate(g_a, side, dirs, rates, g_b)
 
 
-@nb.njit(cache=True)
+@njit(borrows=True)
 def after_step(t_a, t_b, y_old, y_b, F, mode, p, ip, hist, dde, ev, out, y_out, work):
     """Process an accepted step [t_a, t_b] with dense output F; ``ev = (g_a, side,
     dirs, rates, g_b)`` holds the event functions at t_a (with their sides,

@@ -14,6 +14,7 @@ import math
 import numba as nb
 import numpy as np
 
+from rubcosim.components.jit import njit
 from rubcosim.components.root_finding import (
     F_CUR,
     MAX_TRIALS,
@@ -46,7 +47,7 @@ def event_value(slot, t, seg, ctx, hist, scratch):
     return g[slot]
 
 
-@nb.njit(cache=True)
+@njit(borrows=True)
 def value_at(slot, t, seg, ctx, hist, scratch):
     """:func:`event_value` as a call, not inlined: for the sites that run a few times
     per event, each inlined copy of the system's event functions costing seconds of
@@ -54,7 +55,7 @@ def value_at(slot, t, seg, ctx, hist, scratch):
     return event_value(slot, t, seg, ctx, hist, scratch)
 
 
-@nb.njit(cache=True)
+@njit(borrows=True)
 def locate(slot, sgn, ta, fa, tb, fb, seg, ctx, hist, scratch):
     """Bracket [ta, tb] of a zero of ``sgn * g_slot`` (fa > 0 >= fb), located to
     round-off of t; returns the end point on the crossed side (sgn * g <= 0), so
@@ -111,7 +112,7 @@ def _levels_to_skip(i, t_a, h, tp, rp, tm, rm):
     return step
 
 
-@nb.njit(cache=True)
+@njit(borrows=True)
 def first_return(k, j, sgn, t_a, t_b, rate_a, fb, seg, ctx, hist, scratch):
     """Bracket ``(left, right)`` of the first return of ``sgn * g_k`` through zero in a
     step that starts on the surface moving away (``rate_a = sgn * g_j(t_a) > 0``)
@@ -163,7 +164,7 @@ def first_return(k, j, sgn, t_a, t_b, rate_a, fb, seg, ctx, hist, scratch):
     return -1.0, -1.0
 
 
-@nb.njit(cache=True)
+@njit(borrows=True)
 def find_event(t_a, t_b, seg, ctx, hist, scratch, g_a, side_a, dirs_a, rates_a, g_b):
     """Earliest event in (t_a, t_b] of the step's dense output, or (-1, t_b).
 

@@ -24,6 +24,7 @@ from rubcosim.components.dop853 import (
     solution_point,
     stage_point,
 )
+from rubcosim.components.jit import njit
 from rubcosim.components.kernels import all_finite
 
 from .core import (
@@ -94,7 +95,7 @@ def initial_step(t0, y0, f0, t_bound, max_step, rtol, atol, mode, p, ip, hist, y
     return min(100.0 * h0, h1, interval, max_step)
 
 
-@nb.njit(cache=True)
+@njit(borrows=True)
 def dense_coefficients(t_old, h, y_old, y_new, f_new, K, mode, p, ip, hist, yd, F, ytmp, cnt):
     """DOP853 dense output (scipy's F layout) for the step just taken; ``K`` a view that is
     not reference-counted (its rows are written in place)."""
@@ -233,7 +234,8 @@ def integrate(y0, mode, t0, t_end, p, ip, tol, out, hist, dde, y_final, tan):
             step_end_events(t_new, y_new, mode, p, ip, hist, yd, g_b, dirs_b, rates_b)
             if not needs_dense(t_new, hist, g_a, side, dirs, rates, g_b, t_eval, cnt):
                 # Nothing to record, no delay to feed, no event possible: move on.
-                tangent_step(tan, t, h, y, K, mode, p, ip, hist, yd)
+                if tan is not None:  # compiled away without one: no call, no arguments
+                    tangent_step(tan, t, h, y, K, mode, p, ip, hist, yd)
                 for i in range(n):
                     y[i] = y_new[i]
                     f[i] = f_new[i]
@@ -246,9 +248,9 @@ def integrate(y0, mode, t0, t_end, p, ip, tol, out, hist, dde, y_final, tan):
             t_next, mode_next, fs, fside = after_step(
                 t, t_new, y, y_new, F, mode, p, ip, hist, dde, ev, out, y_next, work
             )
-            tangent_after(
-                tan, (t, h, y, F), K, t_next, (mode, mode_next, fs), y_next, out, p, ip, hist, yd
-            )
+            if tan is not None:
+                modes = (mode, mode_next, fs)
+                tangent_after(tan, (t, h, y, F), K, t_next, modes, y_next, out, p, ip, hist, yd)
             y[:] = y_next
             t = t_next
             if fs >= 0 or mode_next != mode:

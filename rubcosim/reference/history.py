@@ -30,6 +30,7 @@ from rubcosim.components.controller import (
     switch_interval,
 )
 from rubcosim.components.dop853 import dense_eval, dense_poly
+from rubcosim.components.jit import njit
 
 from .system import (
     CONTROLLER_NONE,
@@ -117,7 +118,7 @@ def _segment(hist, tq):
     return (start + lo) % cap
 
 
-@nb.njit(cache=True)
+@njit(borrows=True)
 def history_eval(hist, tq, out):
     """Delayed disc state at time ``tq`` (the initial state before the start)."""
     k = _segment(hist, tq)
@@ -128,7 +129,7 @@ def history_eval(hist, tq, out):
     dense_eval(hist[0][k], hist[1][k], hist[3][k], hist[4][k], tq, out, N_DELAYED)
 
 
-@nb.njit(cache=True)
+@njit(borrows=True)
 def filtered_eval(hist, tq, memory, out):
     """``(1 - R) z(tq) + R S(tq)``: the ETDAS filter one delay after ``tq``."""
     k = _segment(hist, tq)
@@ -144,7 +145,7 @@ def filtered_eval(hist, tq, memory, out):
         out[c] = etdas_blend(memory, z, sf)
 
 
-@nb.njit(cache=True)
+@njit(borrows=True)
 def _fit_filter(hist, k, t_old, span, p, ip):
     """The ETDAS filter on ``[t_old, t_old + span]`` into slot ``k``, from older segments."""
     nodes = hist[10]
@@ -164,7 +165,7 @@ def _fit_filter(hist, k, t_old, span, p, ip):
                 hist[9][k, j - 1, c] = acc
 
 
-@nb.njit(cache=True)
+@njit(borrows=True)
 def history_push(hist, t_old, h, t_end, y_old, F, keep_after, p, ip):
     """Store a segment (and, with ETDAS memory, its filter); drop segments that end
     before ``keep_after``."""
@@ -239,7 +240,7 @@ def new_queue(capacity: int):
     return np.zeros((capacity, 2)), qmeta
 
 
-@nb.njit(cache=True)
+@njit(borrows=True)
 def queue_insert(queue, qmeta, value, level):
     """Insert a breakpoint, keeping the queue sorted by time."""
     cap = queue.shape[0]

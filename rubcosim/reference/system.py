@@ -54,6 +54,7 @@ from rubcosim.components.hybrid_dispatch import (
     hybrid_outputs,
     hybrid_rhs,
 )
+from rubcosim.components.jit import njit
 from rubcosim.components.kernels import planar_newton
 from rubcosim.components.rotor import jeffcott_force, journal_force, two_mass_disc_force
 from rubcosim.components.stator import (
@@ -283,7 +284,7 @@ def events(t, y, yd, mode, p, ip, g, dirs, rates):
         hybrid_events(ip[IP_FAMILY] - FAMILY_HYBRID, t, y, mode, p, g, dirs, rates)
 
 
-@nb.njit(cache=True)
+@njit(borrows=True)
 def settle_contact(t, y, yd, p, ip, slip_threshold, current):
     """Mode of a disc in contact: sliding with the sign of the slip, or sticking
     if the slip is (below ``slip_threshold``) zero and friction can hold it."""
@@ -301,7 +302,7 @@ def settle_contact(t, y, yd, p, ip, slip_threshold, current):
     return mode
 
 
-@nb.njit(cache=True)
+@njit(borrows=True)
 def rotor_apply(k, t, y, yd, mode, p, ip):
     rigid = ip[IP_STATOR] == STATOR_RIGID
     if k == 2:
@@ -336,7 +337,7 @@ def rotor_apply(k, t, y, yd, mode, p, ip):
     return MODE_FREE, KIND_IMPACT
 
 
-@nb.njit(cache=True)
+@njit(borrows=True)
 def apply_event(k, t, y, yd, mode, p, ip):
     """Apply the event of slot ``k`` at time t: may change y in place.
 
@@ -373,7 +374,7 @@ def copy_body(y, j, out, i):
     return i + 4
 
 
-@nb.njit(cache=True)
+@njit(borrows=True)
 def outputs(t, y, yd, mode, p, ip, out):
     """Recorded outputs (see :func:`output_names`); ``stator.contact`` and
     a hybrid unit's ``contact`` are 0 free, 1 in contact or sliding, 2 sticking."""
@@ -386,7 +387,7 @@ def outputs(t, y, yd, mode, p, ip, out):
         i = copy_body(y, j, out, i)
     if ip[IP_STATOR] != STATOR_NONE:
         cx, cy, _, _ = stator_centre(y, p, ip)
-        out[i] = p[P_STATOR_CLEARANCE] - math.hypot(y[0] - cx, y[1] - cy)
+        out[i] = p[P_STATOR_CLEARANCE] - contact_geometry(y[0] - cx, y[1] - cy)[0]
         _, _, n = contact_force(t, y, yd, mode, p, ip)
         out[i + 1] = n
         out[i + 2] = 0.0 if mode == MODE_FREE else (2.0 if mode == MODE_STICK else 1.0)

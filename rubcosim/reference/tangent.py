@@ -61,6 +61,7 @@ import numba as nb
 import numpy as np
 
 from rubcosim.components.dop853 import N_EXT, N_STAGES, B, C, solution_point, stage_point
+from rubcosim.components.jit import njit
 
 from .core import C_EVENTS
 from .history import dense_eval, full_rhs
@@ -98,14 +99,14 @@ def new_tangent(Phi, fd, t_fd):
     )
 
 
-@nb.njit(cache=True)
+@njit(borrows=True)
 def rhs_at(t, y, mode, p, ip, hist, yd, dy):
     """The system's right-hand side as a call, not inlined: for the sites that run once
     per event (each inlined copy costs seconds of compilation)."""
     full_rhs(t, y, mode, p, ip, hist, yd, dy)
 
 
-@nb.njit(cache=True)
+@njit(borrows=True)
 def jacobian(t, ys, mode, p, ip, hist, yd, fd, J, fp, fm):
     """J = df/dy at (t, ys) in ``mode`` by central differences of steps ``fd``."""
     n = ys.shape[0]
@@ -122,7 +123,7 @@ def jacobian(t, ys, mode, p, ip, hist, yd, fd, J, fp, fm):
             J[i, j] = (fp[i] - fm[i]) / (up + down)
 
 
-@nb.njit(cache=True)
+@njit(borrows=True)
 def sided_jacobian(t, ys, fs, mode, p, ip, hist, yd, fd, J, ref, fp, fm):
     """J at a step's end point (``fs = f(t, ys)``), which may sit on a kink of the
     vector field: per column the forward, backward or central difference (steps
@@ -162,7 +163,7 @@ def sided_jacobian(t, ys, fs, mode, p, ip, hist, yd, fd, J, ref, fp, fm):
                         J[i, j] = (fp[i] - fm[i]) / (up + down)
 
 
-@nb.njit(cache=True)
+@njit(borrows=True)
 def tangent_stages(tan, t, h, y, K, mode, p, ip, hist, yd):
     """Advance ``Phi`` over the step of size h from (t, y) with the state's stages K."""
     Phi, fd, small, _, _, KP, ptmp, pnew, Js, Ys, fp, fm, _, stats = tan
@@ -196,7 +197,7 @@ def tangent_stages(tan, t, h, y, K, mode, p, ip, hist, yd):
     stats[T_TRACE] += h * trace
 
 
-@nb.njit(cache=True)
+@njit(borrows=True)
 def fresh_stages(tan, t, h, y, K, mode, p, ip, hist, yd):
     """The state's stages 1.. of a step of size h from (t, y) into K (``K[0] = f(t, y)``
     given): a step cut short by an event, re-taken for the tangent.  Apart from
@@ -209,7 +210,7 @@ def fresh_stages(tan, t, h, y, K, mode, p, ip, hist, yd):
             K[s, i] = fp[i]
 
 
-@nb.njit(cache=True)
+@njit(borrows=True)
 def event_function(k, t, y, mode, p, ip, yd, g, dirs, rates):
     events(t, y, yd, mode, p, ip, g, dirs, rates)
     return g[k]
@@ -277,7 +278,7 @@ def saltation(tan, k, te, ym, mode, yp, mode_new, p, ip, hist, yd):
             Phi[i, c] = work[i, c]
 
 
-@nb.njit(cache=True)
+@njit(borrows=True)
 def tangent_step(tan, t, h, y, K, mode, p, ip, hist, yd):
     """The engine's hook after a step [t, t + h] accepted without dense output."""
     if tan is None:
