@@ -206,8 +206,18 @@ def find_event(t_a, t_b, seg, ctx, hist, scratch, g_a, side_a, dirs_a, rates_a, 
                 right = ts
         if right < 0.0 or right > best_t or (right == best_t and best_k >= 0):
             continue
-        fl = sgn * value_at(k, left, seg, ctx, hist, scratch)
-        fr = sgn * value_at(k, right, seg, ctx, hist, scratch)
+        # At the step's ends the values are known: g_a at y_old, which the dense output
+        # gives back exactly (but a slot starting on its surface, whose value the
+        # restart set to zero, is evaluated for its residue), and g_b at y_new (the
+        # brackets above take it too, and it decided that the slot crossed).
+        if left == t_a and sgn * g_a[k] > 0.0:
+            fl = sgn * g_a[k]
+        else:
+            fl = sgn * value_at(k, left, seg, ctx, hist, scratch)
+        if right == t_b:
+            fr = sgn * g_b[k]
+        else:
+            fr = sgn * value_at(k, right, seg, ctx, hist, scratch)
         if fl <= 0.0:
             # Round-off at the start of a step just after an event: treat it as the pre side.
             fl = 1e-300
