@@ -9,8 +9,6 @@ interpolation, safeguarded by the bracket (Brent's method).
 
 from __future__ import annotations
 
-import math
-
 import numba as nb
 import numpy as np
 
@@ -86,10 +84,14 @@ def pre_side(direction, side):
 RETURN_LEVELS = 60  # first_return samples down to 2**-60 of the step: below round-off of t
 # Below JUMP_LEVEL (samples closer to t_a than h / 2**JUMP_LEVEL) the dense output, a
 # polynomial of degree 7 in (t - t_a) / h, is linear to a part in 2**JUMP_LEVEL, and
-# so is the rate: first_return may skip up to MAX_JUMP levels at once there, as long
-# as the rate extrapolated from its last two samples stays above half its last value.
+# so is the rate: first_return may skip levels there, as long as the rate extrapolated
+# from its last two samples stays above half its last value.  The slope of that
+# extrapolation is taken steeper than measured by what the rates' round-off could
+# hide (RATE_NOISE of the rate, a cancellation in a normal speed included): at the
+# finest levels the change of the rate is below round-off, and what it could be is
+# what decides how far the next sample may go.
 JUMP_LEVEL = 6
-MAX_JUMP = 8
+RATE_NOISE = 2.0**-40
 # 2**-i for the levels: a product by an exact power of two is math.ldexp's result, and
 # a table lookup is cheaper than the libm call
 HALVINGS = np.ldexp(1.0, -np.arange(RETURN_LEVELS + 1))
@@ -99,13 +101,14 @@ HALVINGS = np.ldexp(1.0, -np.arange(RETURN_LEVELS + 1))
 def _levels_to_skip(i, t_a, h, tp, rp, tm, rm):
     """How many levels the rising scan of :func:`first_return` moves on from level
     ``i`` (sample ``(tm, rm)``, the one before ``(tp, rp)``): 1 at coarse levels, else
-    up to ``MAX_JUMP`` while the rate's linear extrapolation stays above ``rm / 2``."""
+    more while the rate's linear extrapolation stays above ``rm / 2``."""
     if i <= JUMP_LEVEL:
         return 1
-    slope = (rm - rp) / (tm - tp)
-    room = 0.5 * rm / -slope if slope < 0.0 else math.inf  # time until the rate halves
+    noise = RATE_NOISE * max(rm, abs(rp)) / (tm - tp)
+    slope = min((rm - rp) / (tm - tp), 0.0) - noise
+    room = 0.5 * rm / -slope  # time until the rate may have halved
     step = 1
-    while step < MAX_JUMP and i - step - 1 >= JUMP_LEVEL:
+    while i - step - 1 >= JUMP_LEVEL:
         if h * HALVINGS[i - step - 1] - (tm - t_a) > room:
             break
         step += 1
