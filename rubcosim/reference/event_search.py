@@ -167,7 +167,7 @@ def first_return(k, j, sgn, t_a, t_b, rate_a, fb, seg, ctx, hist, scratch):
     return -1.0, -1.0
 
 
-@njit(borrows=True)
+@njit(borrows=True, inline="always")  # into after_step: see there
 def find_event(t_a, t_b, seg, ctx, hist, scratch, g_a, side_a, dirs_a, rates_a, g_b):
     """Earliest event in (t_a, t_b] of the step's dense output, or (-1, t_b).
 
