@@ -109,7 +109,7 @@ def crossed_end(s: np.ndarray) -> float:
     return s[X_BLK]
 
 
-# --- with rates: safeguarded cubic Hermite interpolation ----------------------------------
+# --- with rates: cubic Hermite interpolation, then Newton ----------------------------------
 # When the caller also knows the function's derivative (the stator's gap and its exact
 # rate), the cubic Hermite interpolant through both ends of the bracket is exact for a
 # quadratic and third-order accurate otherwise, where Brent's method, seeing values
@@ -121,14 +121,20 @@ def crossed_end(s: np.ndarray) -> float:
 #         s[R_F], s[R_D] = f(s[R_X]), f'(s[R_X])
 #     t = s[R_B]                                              # f <= 0 there
 #
-# Each trial is the interpolant's first root in the bracket, kept half a tolerance
-# inside it (so a root known exactly is bracketed by the next trial), or the middle
-# when the last two trials did not halve the bracket.  A trial on the crossed side
-# whose Newton step back to the root is within the tolerance ends the search there
-# (as the masters' test at the end of a step does), so the search usually ends on
-# the crossed side and the caller need not re-run onto it.
-R_A, R_FA, R_DA, R_B, R_FB, R_DB, R_X, R_F, R_D, R_TOL, R_W1, R_W2, R_PENDING = range(13)
-RATE_STATE_SIZE = 13
+# The first trial is the interpolant's first root in the bracket.  Every later trial is
+# Newton's step from the trial before (the value and the derivative there are known:
+# quadratic convergence, where a new interpolant over the shrunken bracket would be no
+# more accurate than the first), as long as it stays in the bracket and at most half
+# as long as the Newton step before it; else the interpolant's root again, or the
+# middle when the last two trials did not halve the bracket.  Trials are kept half a
+# tolerance inside the bracket (so a root known exactly is bracketed by the next
+# trial), and a Newton trial aims a quarter of the tolerance past its root estimate,
+# so that once the estimate is that close it lands on the crossed side.  A trial on
+# the crossed side whose Newton step back to the root is within the tolerance ends the
+# search there (as the masters' test at the end of a step does), so the search usually
+# ends on the crossed side and the caller need not re-run onto it.
+R_A, R_FA, R_DA, R_B, R_FB, R_DB, R_X, R_F, R_D, R_TOL, R_W1, R_W2, R_PENDING, R_NEWTON = range(14)
+RATE_STATE_SIZE = 14
 
 
 @njit(inline="always")
@@ -169,8 +175,11 @@ def hermite_first_root(fa: float, da: float, fb: float, db: float, h: float) -> 
         if lo < r < hi and ((c3 * r + c2) * r + c1) * r + fa <= 0.0:
             hi = r
             break
-    # Newton on the monotone piece, bisection when it leaves it
-    th = 0.5 * (lo + hi)
+    # Newton on the monotone piece from its secant point (a few steps from there where
+    # the middle took many more), bisection when it leaves it
+    p_lo = fa if lo == 0.0 else ((c3 * lo + c2) * lo + c1) * lo + fa
+    p_hi = ((c3 * hi + c2) * hi + c1) * hi + fa
+    th = lo + (hi - lo) * (p_lo / (p_lo - p_hi)) if p_lo > p_hi else 0.5 * (lo + hi)
     for _ in range(60):
         p = ((c3 * th + c2) * th + c1) * th + fa
         if p > 0.0:
@@ -178,10 +187,16 @@ def hermite_first_root(fa: float, da: float, fb: float, db: float, h: float) -> 
         else:
             hi = th
         dp = (3.0 * c3 * th + 2.0 * c2) * th + c1
-        nxt = th - p / dp if dp != 0.0 else 0.5 * (lo + hi)
+        step = p / dp if dp != 0.0 else math.inf
+        if abs(step) <= 1e-15 * th:
+            # converged: tested on the step, not on the next point, which round-off
+            # may push out of the bracket (a bisection then, for nothing)
+            th = min(max(th - step, lo), hi)
+            break
+        nxt = th - step
         if not lo < nxt < hi:
             nxt = 0.5 * (lo + hi)
-        if abs(nxt - th) <= 1e-15 * max(th, 1e-300) or hi - lo <= 1e-16:
+        if hi - lo <= 1e-16:
             th = nxt
             break
         th = nxt
@@ -194,18 +209,29 @@ def bracket_with_rates(
 ) -> np.ndarray:
     """The rate-aware locator's state for ``[ta, tb]`` with ``fa > 0 >= fb`` and the
     derivatives ``da``, ``db`` there; ``xtol`` as in :func:`bracket`."""
-    s = np.zeros(RATE_STATE_SIZE)
-    s[R_A], s[R_FA], s[R_DA] = ta, fa, da
-    s[R_B], s[R_FB], s[R_DB] = tb, fb, db
-    s[R_TOL] = xtol
-    s[R_W1] = s[R_W2] = math.inf
+    s = np.empty(RATE_STATE_SIZE)
+    start_with_rates(s, ta, fa, da, tb, fb, db, xtol)
     return s
 
 
-@njit
+@njit(inline="always")
+def start_with_rates(
+    s: np.ndarray, ta: float, fa: float, da: float, tb: float, fb: float, db: float, xtol: float
+) -> None:
+    """:func:`bracket_with_rates` into the caller's array ``s`` (``RATE_STATE_SIZE`` long)."""
+    s[R_A], s[R_FA], s[R_DA] = ta, fa, da
+    s[R_B], s[R_FB], s[R_DB] = tb, fb, db
+    s[R_X], s[R_F], s[R_D] = ta, fa, da
+    s[R_TOL] = xtol
+    s[R_W1] = s[R_W2] = s[R_NEWTON] = math.inf
+    s[R_PENDING] = 0.0
+
+
+@njit(inline="always")
 def advance_with_rates(s: np.ndarray) -> bool:
     """Take the value and derivative at the trial point into account and propose the
     next trial ``s[R_X]``; True when located (``s[R_B]`` is the crossed end)."""
+    newton = math.inf  # Newton's step from the trial just evaluated, if any
     if s[R_PENDING] != 0.0:
         s[R_PENDING] = 0.0
         if s[R_F] > 0.0:
@@ -214,14 +240,22 @@ def advance_with_rates(s: np.ndarray) -> bool:
             s[R_B], s[R_FB], s[R_DB] = s[R_X], s[R_F], s[R_D]
             if s[R_D] < 0.0 and -s[R_F] <= -s[R_D] * s[R_TOL]:
                 return True  # crossed, and the root is within the tolerance behind
+        if s[R_D] < 0.0:  # falling through the crossing, as a root in the bracket needs
+            newton = -s[R_F] / s[R_D]
     a, b, tol = s[R_A], s[R_B], s[R_TOL]
     width = b - a
     if width <= tol or s[R_FB] == 0.0:
         return True
-    if width > 0.5 * s[R_W2]:  # two trials without halving the bracket: bisect
-        x = a + 0.5 * width
+    x = s[R_X] + newton
+    if a < x < b and abs(newton) <= 0.5 * s[R_NEWTON]:
+        s[R_NEWTON] = abs(newton)
+        x += 0.25 * tol
     else:
-        x = a + hermite_first_root(s[R_FA], s[R_DA], s[R_FB], s[R_DB], width)
+        s[R_NEWTON] = math.inf
+        if width > 0.5 * s[R_W2]:  # two trials without halving the bracket: bisect
+            x = a + 0.5 * width
+        else:
+            x = a + hermite_first_root(s[R_FA], s[R_DA], s[R_FB], s[R_DB], width)
     x = min(max(x, a + 0.5 * tol), b - 0.5 * tol)
     s[R_W2], s[R_W1] = s[R_W1], width
     s[R_X] = x

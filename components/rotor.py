@@ -45,7 +45,7 @@ TWO_MASS_PARAMS = (
 )
 
 
-@njit
+@njit(inline="always")
 def unbalance_force(t: float, m: float, e: float, w: float) -> tuple[float, float]:
     """Rotating unbalance force on the disc, N: m e w^2 (cos wt, sin wt)."""
     a = m * e * w * w
@@ -53,7 +53,7 @@ def unbalance_force(t: float, m: float, e: float, w: float) -> tuple[float, floa
     return a * c, a * s
 
 
-@njit
+@njit(inline="always")
 def jeffcott_force(
     t: float,
     x: float,

@@ -16,11 +16,18 @@ from rubcosim.components.jit import njit
 from rubcosim.components.root_finding import (
     F_CUR,
     MAX_TRIALS,
+    R_B,
+    R_D,
+    R_F,
+    R_X,
+    RATE_STATE_SIZE,
     STATE_SIZE,
     X_CUR,
     advance,
+    advance_with_rates,
     crossed_end,
     start,
+    start_with_rates,
 )
 
 from .history import delayed_state, dense_eval
@@ -67,6 +74,24 @@ def locate(slot, sgn, ta, fa, tb, fb, seg, ctx, hist, scratch):
     return crossed_end(s)
 
 
+@njit(borrows=True)
+def locate_with_rate(slot, j, sgn, ta, fa, da, tb, fb, db, seg, ctx, hist, scratch):
+    """:func:`locate` for a slot whose time derivative is slot ``j`` (``da``, ``db`` that
+    of ``sgn * g_slot`` at the ends): the same evaluation gives it at every trial, so
+    the locator interpolates with it and then takes Newton's steps (about 3 trials
+    where Brent's method, with values only, takes 5 or 6)."""
+    s = stack_floats(RATE_STATE_SIZE, RATE_STATE_SIZE)  # no allocation
+    start_with_rates(
+        s, ta, fa, da, tb, fb, db, 4.0 * np.finfo(np.float64).eps * max(abs(ta), abs(tb), 1.0)
+    )
+    for _ in range(MAX_TRIALS):
+        if advance_with_rates(s):
+            break
+        s[R_F] = sgn * event_value(slot, s[R_X], seg, ctx, hist, scratch)
+        s[R_D] = sgn * scratch[2][j]  # the same evaluation filled every slot
+    return s[R_B]
+
+
 @nb.njit(cache=True)
 def pre_side(direction, side):
     """Sign of an event function before it fires: +1 for a falling event, -1
@@ -92,6 +117,14 @@ RETURN_LEVELS = 60  # first_return samples down to 2**-60 of the step: below rou
 # what decides how far the next sample may go.
 JUMP_LEVEL = 6
 RATE_NOISE = 2.0**-40
+# From JUMP_LEVEL on, the scan samples every COARSE_STRIDE-th level (h/64, h/16, h/4 and
+# the step's end, whose values are known).  It sees a return whose rate stays negative
+# from its top to four times as long after the step's start; a return needs about
+# twice (the top halfway to it, under a steady pull back), and a rate that turned
+# back up sooner, within a quarter of the step, would need the flight to change its
+# curvature on a time scale the step-size controller resolves in 12 stages.  The
+# chattering case (a rebound much shorter than the step) is the fine levels' part.
+COARSE_STRIDE = 2
 # 2**-i for the levels: a product by an exact power of two is math.ldexp's result, and
 # a table lookup is cheaper than the libm call
 HALVINGS = np.ldexp(1.0, -np.arange(RETURN_LEVELS + 1))
@@ -100,10 +133,11 @@ HALVINGS = np.ldexp(1.0, -np.arange(RETURN_LEVELS + 1))
 @nb.njit(cache=True, inline="always")
 def _levels_to_skip(i, t_a, h, tp, rp, tm, rm):
     """How many levels the rising scan of :func:`first_return` moves on from level
-    ``i`` (sample ``(tm, rm)``, the one before ``(tp, rp)``): 1 at coarse levels, else
-    more while the rate's linear extrapolation stays above ``rm / 2``."""
+    ``i`` (sample ``(tm, rm)``, the one before ``(tp, rp)``): COARSE_STRIDE at coarse
+    levels (down to level 0), else more while the rate's linear extrapolation stays
+    above ``rm / 2``."""
     if i <= JUMP_LEVEL:
-        return 1
+        return min(COARSE_STRIDE, i) if i > 0 else 1
     noise = RATE_NOISE * max(rm, abs(rp)) / (tm - tp)
     slope = min((rm - rp) / (tm - tp), 0.0) - noise
     room = 0.5 * rm / -slope  # time until the rate may have halved
@@ -116,19 +150,20 @@ def _levels_to_skip(i, t_a, h, tp, rp, tm, rm):
 
 
 @njit(borrows=True)
-def first_return(k, j, sgn, t_a, t_b, rate_a, fb, seg, ctx, hist, scratch):
+def first_return(k, j, sgn, t_a, t_b, rate_a, fb, rate_b, seg, ctx, hist, scratch):
     """Bracket ``(left, right)`` of the first return of ``sgn * g_k`` through zero in a
     step that starts on the surface moving away (``rate_a = sgn * g_j(t_a) > 0``)
-    and ends with the rate on the same side (``fb = sgn * g_k(t_b)``); ``(-1, -1)``
-    if it does not come back.
+    and ends with the rate on the same side (``fb = sgn * g_k(t_b)``, ``rate_b =
+    sgn * g_j(t_b) >= 0``); ``(-1, -1)`` if it does not come back.
 
     g rose, and turned an even number of times, if at all: it may have come back
     through zero (and even left again) inside the step, which neither end shows.
     A rebound much shorter than the step (chattering) is the usual case, so the
     rate is sampled at ``t_a + h / 2**i``, i = RETURN_LEVELS..0 (skipping levels
-    where the rate is linear and far from zero: :func:`_levels_to_skip`); its first
-    turn (the top) starts the bracket, which ends at the first sample on the crossed
-    side, or at the bottom of the return if g turns up again there.
+    where the rate is linear and far from zero, :func:`_levels_to_skip`, and every
+    other coarse level, COARSE_STRIDE); its first turn (the top) starts the bracket,
+    which ends at the first sample on the crossed side, or at the bottom of the return
+    if g turns up again there.
     """
     h = t_b - t_a
     tp, rp = t_a, rate_a
@@ -136,12 +171,15 @@ def first_return(k, j, sgn, t_a, t_b, rate_a, fb, seg, ctx, hist, scratch):
     last = t_a  # latest point with sgn * g > 0 and no zero of it found before
     i = RETURN_LEVELS
     while i >= 0:
-        tm = t_b if i == 0 else t_a + h * HALVINGS[i]
-        if tm <= tp:
-            i -= 1
-            continue
-        rm = sgn * event_value(j, tm, seg, ctx, hist, scratch)
-        gm = sgn * scratch[2][k]  # the same evaluation filled every slot: g_k at tm too
+        if i == 0:
+            tm, rm, gm = t_b, rate_b, fb  # the step's end: known
+        else:
+            tm = t_a + h * HALVINGS[i]
+            if tm <= tp:
+                i -= 1
+                continue
+            rm = sgn * event_value(j, tm, seg, ctx, hist, scratch)
+            gm = sgn * scratch[2][k]  # the same evaluation filled every slot: g_k at tm too
         if top < 0.0:
             if rm > 0.0:
                 i -= _levels_to_skip(i, t_a, h, tp, rp, tm, rm)
@@ -194,8 +232,9 @@ def find_event(t_a, t_b, seg, ctx, hist, scratch, g_a, side_a, dirs_a, rates_a, 
             # fires again at one instant), and g_b alone misses a return that has
             # left again by t_b.
             left, right = first_return(
-                k, j, sgn, t_a, t_b, sgn * g_a[j], sgn * g_b[k], seg, ctx, hist, scratch
-            )
+                k, j, sgn, t_a, t_b, sgn * g_a[j], sgn * g_b[k], sgn * g_b[j],
+                seg, ctx, hist, scratch,
+            )  # fmt: skip
         elif sgn * g_b[k] <= 0.0:
             right = t_b
             if leaving:
@@ -212,21 +251,29 @@ def find_event(t_a, t_b, seg, ctx, hist, scratch, g_a, side_a, dirs_a, rates_a, 
         # At the step's ends the values are known: g_a at y_old, which the dense output
         # gives back exactly (but a slot starting on its surface, whose value the
         # restart set to zero, is evaluated for its residue), and g_b at y_new (the
-        # brackets above take it too, and it decided that the slot crossed).
+        # brackets above take it too, and it decided that the slot crossed).  So are
+        # the rates, where the slot has one (an evaluation fills every slot).
         if left == t_a and sgn * g_a[k] > 0.0:
             fl = sgn * g_a[k]
+            dl = sgn * g_a[j] if j >= 0 else 0.0
         else:
             fl = sgn * value_at(k, left, seg, ctx, hist, scratch)
+            dl = sgn * scratch[2][j] if j >= 0 else 0.0
         if right == t_b:
             fr = sgn * g_b[k]
+            dr = sgn * g_b[j] if j >= 0 else 0.0
         else:
             fr = sgn * value_at(k, right, seg, ctx, hist, scratch)
+            dr = sgn * scratch[2][j] if j >= 0 else 0.0
         if fl <= 0.0:
             # Round-off at the start of a step just after an event: treat it as the pre side.
             fl = 1e-300
         if fr > 0.0:
             continue
-        te = locate(k, sgn, left, fl, right, fr, seg, ctx, hist, scratch)
+        if j >= 0:
+            te = locate_with_rate(k, j, sgn, left, fl, dl, right, fr, dr, seg, ctx, hist, scratch)
+        else:
+            te = locate(k, sgn, left, fl, right, fr, seg, ctx, hist, scratch)
         if best_k < 0 or te < best_t:
             best_k = k
             best_t = te
