@@ -156,9 +156,10 @@ def after_step(t_a, t_b, y_old, y_b, F, mode, p, ip, hist, dde, ev, out, y_out, 
         t_a, t_b, seg, (mode, p, ip), hist, (ybuf, yd, g, dtmp, rtmp), g_a, side, dirs, rates, g_b
     )
     t_hi = te if k >= 0 else t_b
-    cnt[C_EVAL] = record(
-        t_a, t_hi, t_a, h, y_old, F, mode, p, ip, hist, t_eval, cnt[C_EVAL], rec, ybuf, yd, obuf
-    )
+    if cnt[C_EVAL] < t_eval.shape[0] and t_eval[cnt[C_EVAL]] <= t_hi:  # else: no call
+        cnt[C_EVAL] = record(
+            t_a, t_hi, t_a, h, y_old, F, mode, p, ip, hist, t_eval, cnt[C_EVAL], rec, ybuf, yd, obuf
+        )
     if hist is not None:
         history_push(hist, t_a, h, t_hi, y_old, F, t_hi - max_history_age(p, ip) - h, p, ip)
     if k < 0:

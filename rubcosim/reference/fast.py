@@ -49,9 +49,10 @@ from .event_search import (
 from .history import (
     full_rhs,
     next_breakpoint,
+    uses_history,
 )
 from .stack_arrays import stack_floats, stack_ints, stack_matrix
-from .system import MAX_STATES, N_DELAYED, N_EVENTS
+from .system import MAX_STATES, N_DELAYED, N_EVENTS, N_IP, N_P
 from .tangent import tangent_after, tangent_step
 from .unowned import keep_alive, unowned
 
@@ -151,8 +152,17 @@ def integrate(y0, mode, t0, t_end, p, ip, tol, out, hist, dde, y_final, tan):
              unowned(evlog[4]))  # fmt: skip
     out, dde = (t_eval, rec, evlog, cnt), (queue, qmeta)
     n = y0.shape[0]
-    if n > MAX_STATES:
-        raise ValueError("integrate: more states than layout.MAX_STATES")
+    if n > MAX_STATES or len(p) > N_P or len(ip) > N_IP:
+        raise ValueError("integrate: more states or parameters than the layout's")
+    # The parameters (tuples: values the inlined right-hand side keeps in registers) as
+    # arrays on this function's stack too, for the calls that are not inlined (the event
+    # search, the outputs, the event map): numba passes a tuple argument by value, some
+    # sixty words onto the stack at every call, where an array is a pointer.
+    p_arr, ip_arr = stack_floats(N_P, len(p)), stack_ints(N_IP, len(ip))
+    for i in range(len(p)):
+        p_arr[i] = p[i]
+    for i in range(len(ip)):
+        ip_arr[i] = ip[i]
     # The step loop's scratch arrays live on this function's stack: no allocation, and
     # the optimiser knows that none of them overlaps another (stack_arrays).
     y, y_next, y_new = (
@@ -188,9 +198,11 @@ def integrate(y0, mode, t0, t_end, p, ip, tol, out, hist, dde, y_final, tan):
     ev = (g_a, side, dirs, rates, g_b)  # what after_step reads and updates
     forced_slot, forced_side = -1, 0
     h_last = 0.0
-    cnt[C_EVAL] = record_point(t, y, mode, p, ip, hist, t_eval, np.int64(0), rec, yd, obuf)
+    cnt[C_EVAL] = record_point(t, y, mode, p_arr, ip_arr, hist, t_eval, np.int64(0), rec, yd, obuf)
     while t < t_end and cnt[C_STATUS] == STATUS_OK:
-        bound = next_breakpoint(t, t_end, p, ip, queue, qmeta)
+        bound = t_end
+        if uses_history(p, ip):  # next_breakpoint's own first test: without a delay, no call
+            bound = next_breakpoint(t, t_end, p_arr, ip_arr, queue, qmeta)
         start_sides(t, y, mode, p, ip, hist, g_a, dirs, rates, side, yd, forced_slot, forced_side)
         forced_slot = -1
         full_rhs(t, y, mode, p, ip, hist, yd, f)
@@ -248,7 +260,7 @@ def integrate(y0, mode, t0, t_end, p, ip, tol, out, hist, dde, y_final, tan):
                 continue
             dense_coefficients(t, h, y, y_new, f_new, K, mode, p, ip, hist, yd, F, ytmp, cnt)
             t_next, mode_next, fs, fside = after_step(
-                t, t_new, y, y_new, F, mode, p, ip, hist, dde, ev, out, y_next, work
+                t, t_new, y, y_new, F, mode, p_arr, ip_arr, hist, dde, ev, out, y_next, work
             )
             if tan is not None:
                 modes = (mode, mode_next, fs)

@@ -193,8 +193,9 @@ def history_push(hist, t_old, h, t_end, y_old, F, keep_after, p, ip):
     meta[HM_COUNT] += 1
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, inline="always")
 def uses_history(p, ip):
+    """Whether the system has a delay (a controller on a rotor)."""
     return ip[IP_FAMILY] == FAMILY_ROTOR and ip[IP_CONTROLLER] != CONTROLLER_NONE
 
 

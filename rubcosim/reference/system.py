@@ -337,7 +337,7 @@ def rotor_apply(k, t, y, yd, mode, p, ip):
     return MODE_FREE, KIND_IMPACT
 
 
-@njit(borrows=True)
+@njit(borrows=True, inline="always")  # a dispatch: inlined, one call less per event
 def apply_event(k, t, y, yd, mode, p, ip):
     """Apply the event of slot ``k`` at time t: may change y in place.
 
