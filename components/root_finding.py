@@ -121,10 +121,7 @@ def crossed_end(s: np.ndarray) -> float:
 #         s[R_F], s[R_D] = f(s[R_X]), f'(s[R_X])
 #     t = s[R_B]                                              # f <= 0 there
 #
-# The first trial is the interpolant's first root in the bracket, or, where the caller
-# asks for a quick one (:func:`start_with_rates`), two Newton steps on the interpolant
-# from the secant point (:func:`hermite_trial`: a third of the cost, for a trial
-# about as good where the bracket holds one root).  Every later trial is
+# The first trial is the interpolant's first root in the bracket.  Every later trial is
 # Newton's step from the trial before (the value and the derivative there are known:
 # quadratic convergence, where a new interpolant over the shrunken bracket would be no
 # more accurate than the first), as long as it stays in the bracket and at most half
@@ -136,10 +133,8 @@ def crossed_end(s: np.ndarray) -> float:
 # the crossed side whose Newton step back to the root is within the tolerance ends the
 # search there (as the masters' test at the end of a step does), so the search usually
 # ends on the crossed side and the caller need not re-run onto it.
-R_A, R_FA, R_DA, R_B, R_FB, R_DB, R_X, R_F, R_D, R_TOL, R_W1, R_W2, R_PENDING, R_NEWTON, R_QUICK = (
-    range(15)
-)
-RATE_STATE_SIZE = 15
+R_A, R_FA, R_DA, R_B, R_FB, R_DB, R_X, R_F, R_D, R_TOL, R_W1, R_W2, R_PENDING, R_NEWTON = range(14)
+RATE_STATE_SIZE = 14
 
 
 @njit(inline="always")
@@ -208,27 +203,6 @@ def hermite_first_root(fa: float, da: float, fb: float, db: float, h: float) -> 
     return th * h
 
 
-@njit(inline="always")
-def hermite_trial(fa: float, da: float, fb: float, db: float, h: float) -> float:
-    """A cheap estimate of :func:`hermite_first_root`: two Newton steps on the cubic
-    Hermite interpolant from the secant point, which is returned instead when a step
-    meets a slope that is not falling or leaves ``(0, h)``.  Newton's convergence from
-    the secant point makes it as good a first trial as the exact root where the bracket
-    holds a single root, the usual case; the locator's own safeguards handle the rest."""
-    c3, c2, c1 = hermite_cubic(fa, da, fb, db, h)
-    secant = fa / (fa - fb)
-    th = secant
-    for _ in range(2):
-        p = ((c3 * th + c2) * th + c1) * th + fa
-        dp = (3.0 * c3 * th + 2.0 * c2) * th + c1
-        if not dp < 0.0:
-            return secant * h
-        th -= p / dp
-        if not 0.0 < th < 1.0:
-            return secant * h
-    return th * h
-
-
 @njit
 def bracket_with_rates(
     ta: float, fa: float, da: float, tb: float, fb: float, db: float, xtol: float
@@ -236,25 +210,20 @@ def bracket_with_rates(
     """The rate-aware locator's state for ``[ta, tb]`` with ``fa > 0 >= fb`` and the
     derivatives ``da``, ``db`` there; ``xtol`` as in :func:`bracket`."""
     s = np.empty(RATE_STATE_SIZE)
-    start_with_rates(s, ta, fa, da, tb, fb, db, xtol, False)
+    start_with_rates(s, ta, fa, da, tb, fb, db, xtol)
     return s
 
 
 @njit(inline="always")
 def start_with_rates(
-    s: np.ndarray,
-    ta: float, fa: float, da: float, tb: float, fb: float, db: float,
-    xtol: float, quick: bool,
-) -> None:  # fmt: skip
-    """:func:`bracket_with_rates` into the caller's array ``s`` (``RATE_STATE_SIZE``
-    long); ``quick``: the first trial from :func:`hermite_trial` (for a caller whose
-    evaluations cost about as much as the interpolant's exact root)."""
+    s: np.ndarray, ta: float, fa: float, da: float, tb: float, fb: float, db: float, xtol: float
+) -> None:
+    """:func:`bracket_with_rates` into the caller's array ``s`` (``RATE_STATE_SIZE`` long)."""
     s[R_A], s[R_FA], s[R_DA] = ta, fa, da
     s[R_B], s[R_FB], s[R_DB] = tb, fb, db
     s[R_X], s[R_F], s[R_D] = ta, fa, da
     s[R_TOL] = xtol
     s[R_W1] = s[R_W2] = s[R_NEWTON] = math.inf
-    s[R_QUICK] = 1.0 if quick else 0.0
     s[R_PENDING] = 0.0
 
 
@@ -285,8 +254,6 @@ def advance_with_rates(s: np.ndarray) -> bool:
         s[R_NEWTON] = math.inf
         if width > 0.5 * s[R_W2]:  # two trials without halving the bracket: bisect
             x = a + 0.5 * width
-        elif s[R_QUICK] != 0.0 and s[R_W1] == math.inf:  # the first trial, a quick one
-            x = a + hermite_trial(s[R_FA], s[R_DA], s[R_FB], s[R_DB], width)
         else:
             x = a + hermite_first_root(s[R_FA], s[R_DA], s[R_FB], s[R_DB], width)
     x = min(max(x, a + 0.5 * tol), b - 0.5 * tol)

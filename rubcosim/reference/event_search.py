@@ -81,9 +81,9 @@ def locate_with_rate(slot, j, sgn, ta, fa, da, tb, fb, db, seg, ctx, hist, scrat
     the locator interpolates with it and then takes Newton's steps (about 3 trials
     where Brent's method, with values only, takes 5 or 6)."""
     s = stack_floats(RATE_STATE_SIZE, RATE_STATE_SIZE)  # no allocation
-    xtol = 4.0 * np.finfo(np.float64).eps * max(abs(ta), abs(tb), 1.0)
-    # a quick first trial: an evaluation here costs about what the interpolant's exact root does
-    start_with_rates(s, ta, fa, da, tb, fb, db, xtol, True)
+    start_with_rates(
+        s, ta, fa, da, tb, fb, db, 4.0 * np.finfo(np.float64).eps * max(abs(ta), abs(tb), 1.0)
+    )
     for _ in range(MAX_TRIALS):
         if advance_with_rates(s):
             break
