@@ -106,47 +106,17 @@ def pre_side(direction, side):
     return float(side)
 
 
-RETURN_LEVELS = 60  # first_return samples down to 2**-60 of the step: below round-off of t
-# Below JUMP_LEVEL (samples closer to t_a than h / 2**JUMP_LEVEL) the dense output, a
-# polynomial of degree 7 in (t - t_a) / h, is linear to a part in 2**JUMP_LEVEL, and
-# so is the rate: first_return may skip levels there, as long as the rate extrapolated
-# from its last two samples stays above half its last value.  The slope of that
-# extrapolation is taken steeper than measured by what the rates' round-off could
-# hide (RATE_NOISE of the rate, a cancellation in a normal speed included): at the
-# finest levels the change of the rate is below round-off, and what it could be is
-# what decides how far the next sample may go.
-JUMP_LEVEL = 6
-RATE_NOISE = 2.0**-40
-# From JUMP_LEVEL on, the scan samples every COARSE_STRIDE-th level (h/64, h/16, h/4 and
-# the step's end, whose values are known).  It sees a return whose rate stays negative
-# from its top to four times as long after the step's start; a return needs about
-# twice (the top halfway to it, under a steady pull back), and a rate that turned
-# back up sooner, within a quarter of the step, would need the flight to change its
-# curvature on a time scale the step-size controller resolves in 12 stages.  The
-# chattering case (a rebound much shorter than the step) is the fine levels' part.
-COARSE_STRIDE = 2
-# 2**-i for the levels: a product by an exact power of two is math.ldexp's result, and
-# a table lookup is cheaper than the libm call
-HALVINGS = np.ldexp(1.0, -np.arange(RETURN_LEVELS + 1))
-
-
-@nb.njit(cache=True, inline="always")
-def _levels_to_skip(i, t_a, h, tp, rp, tm, rm):
-    """How many levels the rising scan of :func:`first_return` moves on from level
-    ``i`` (sample ``(tm, rm)``, the one before ``(tp, rp)``): COARSE_STRIDE at coarse
-    levels (down to level 0), else more while the rate's linear extrapolation stays
-    above ``rm / 2``."""
-    if i <= JUMP_LEVEL:
-        return min(COARSE_STRIDE, i) if i > 0 else 1
-    noise = RATE_NOISE * max(rm, abs(rp)) / (tm - tp)
-    slope = min((rm - rp) / (tm - tp), 0.0) - noise
-    room = 0.5 * rm / -slope  # time until the rate may have halved
-    step = 1
-    while i - step - 1 >= JUMP_LEVEL:
-        if h * HALVINGS[i - step - 1] - (tm - t_a) > room:
-            break
-        step += 1
-    return step
+# first_return samples the rate at t_a + h / 4**i, i = RETURN_LEVELS .. 0 (h/64, h/16, h/4
+# and the step's end, whose values are known).  It sees a return whose rate stays
+# negative from its top to four times as long after the step's start, or past h/64: a
+# return needs about twice (the top halfway to it, under a steady pull back), so what it
+# can miss is a rate that turned down and back up again within a factor of four in time
+# and above h/64, or altogether below h/64: a flight that changes its curvature twice
+# on a time scale the step-size controller resolves in 12 stages.  A rebound much
+# shorter than the step (chattering) keeps its rate negative from its top to the
+# step's end, where the pull that brought it back reverses; any sample catches it.
+RETURN_LEVELS = 3
+QUARTERS = np.ldexp(1.0, -2 * np.arange(RETURN_LEVELS + 1))  # 4**-i: exact powers of two
 
 
 @njit(borrows=True)
@@ -158,31 +128,25 @@ def first_return(k, j, sgn, t_a, t_b, rate_a, fb, rate_b, seg, ctx, hist, scratc
 
     g rose, and turned an even number of times, if at all: it may have come back
     through zero (and even left again) inside the step, which neither end shows.
-    A rebound much shorter than the step (chattering) is the usual case, so the
-    rate is sampled at ``t_a + h / 2**i``, i = RETURN_LEVELS..0 (skipping levels
-    where the rate is linear and far from zero, :func:`_levels_to_skip`, and every
-    other coarse level, COARSE_STRIDE); its first turn (the top) starts the bracket,
-    which ends at the first sample on the crossed side, or at the bottom of the return
-    if g turns up again there.
+    The rate is sampled at ``t_a + h / 4**i``, i = RETURN_LEVELS..0 (see there);
+    its first turn (the top) starts the bracket, which ends at the first sample on the
+    crossed side, or at the bottom of the return if g turns up again there.
     """
     h = t_b - t_a
     tp, rp = t_a, rate_a
     top = -1.0
     last = t_a  # latest point with sgn * g > 0 and no zero of it found before
-    i = RETURN_LEVELS
-    while i >= 0:
+    for i in range(RETURN_LEVELS, -1, -1):
         if i == 0:
             tm, rm, gm = t_b, rate_b, fb  # the step's end: known
         else:
-            tm = t_a + h * HALVINGS[i]
+            tm = t_a + h * QUARTERS[i]
             if tm <= tp:
-                i -= 1
                 continue
             rm = sgn * event_value(j, tm, seg, ctx, hist, scratch)
             gm = sgn * scratch[2][k]  # the same evaluation filled every slot: g_k at tm too
         if top < 0.0:
             if rm > 0.0:
-                i -= _levels_to_skip(i, t_a, h, tp, rp, tm, rm)
                 tp, rp = tm, rm
                 continue
             top = locate(j, sgn, tp, rp, tm, rm, seg, ctx, hist, scratch)
@@ -199,7 +163,6 @@ def first_return(k, j, sgn, t_a, t_b, rate_a, fb, rate_b, seg, ctx, hist, scratc
             break
         last = tm
         tp, rp = tm, rm
-        i -= 1
     if fb <= 0.0:
         return last, t_b
     return -1.0, -1.0
