@@ -263,8 +263,8 @@ def test_rebounds_much_shorter_than_the_step_follow_the_closed_form(engine):
     # at t_k = 1 + 2 r (1 - r^k) / (1 - r).  With r = 0.05 every flight is 20 times
     # shorter than the one before, while the step after an impact keeps the length of
     # the last accepted one (the motion is quadratic: no error): the return of the
-    # third and fourth rebounds lies 2**-11 to 2**-18 of a step in, found by the
-    # sampling of first_return.
+    # third and fourth rebounds lies 2**-11 to 2**-18 of a step in, found from the rate
+    # (turned by the step's end: the top is located, and the return after it).
     r = 0.05
     osc = make_unit(
         "oscillator",
