@@ -177,9 +177,9 @@ def hermite_first_root(fa: float, da: float, fb: float, db: float, h: float) -> 
             break
     # Newton on the monotone piece from its secant point (a few steps from there where
     # the middle took many more), bisection when it leaves it
-    p_lo = fa if lo == 0.0 else ((c3 * lo + c2) * lo + c1) * lo + fa
+    # (lo is still 0 here, where p is fa: only hi moved)
     p_hi = ((c3 * hi + c2) * hi + c1) * hi + fa
-    th = lo + (hi - lo) * (p_lo / (p_lo - p_hi)) if p_lo > p_hi else 0.5 * (lo + hi)
+    th = hi * (fa / (fa - p_hi)) if fa > p_hi else 0.5 * hi
     for _ in range(60):
         p = ((c3 * th + c2) * th + c1) * th + fa
         if p > 0.0:

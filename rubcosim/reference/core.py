@@ -14,7 +14,7 @@ import numpy as np
 
 from rubcosim.components.jit import njit
 
-from .event_search import event_candidate, find_event, sides_from
+from .event_search import event_candidate, find_event, sides_from, time_round_off
 from .history import (
     delayed_state,
     dense_eval,
@@ -189,7 +189,7 @@ def after_step(t_a, t_b, y_old, y_b, F, mode, p, ip, hist, dde, ev, out, y_out, 
         # slip or a stick) its derivative: the delayed term inherits the jump or kink
         # one delay later, and the ETDAS filter, fitted per step, must not straddle it
         push_arrivals(queue, qmeta, te, 1.0, p, ip)
-    if te - t_a <= 4.0 * np.finfo(np.float64).eps * max(1.0, abs(te)):
+    if te - t_a <= time_round_off(te):
         cnt[C_SAME_TIME] += 1
     else:
         cnt[C_SAME_TIME] = 0

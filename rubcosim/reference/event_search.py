@@ -3,8 +3,12 @@
 After every accepted step the event functions at its two ends are compared;
 a sign change, or a rate companion that changes sign (a contact that opens
 and closes inside the step, a rebound that returns), brackets an event, which
-:func:`rubcosim.components.root_finding` locates: Feng & Yang's three-point
-interpolation, safeguarded by the bracket (Brent's method).
+:mod:`rubcosim.components.root_finding` locates to round-off of t.  An event
+function whose time derivative is another slot (the gap and its rate, a barrier
+and the velocity) goes to the rate-aware locator (:func:`locate_with_rate`: the
+root of the cubic Hermite interpolant, then Newton's steps inside the bracket);
+any other to Brent's method (:func:`locate`: Feng & Yang's three-point
+interpolation, safeguarded by the bracket).
 """
 
 from __future__ import annotations
@@ -60,13 +64,20 @@ def value_at(slot, t, seg, ctx, hist, scratch):
     return event_value(slot, t, seg, ctx, hist, scratch)
 
 
+@nb.njit(cache=True, inline="always")
+def time_round_off(t: float) -> float:
+    """The round-off scale of a time t, s: 4 eps max(|t|, 1).  An event is located to it,
+    and a step shorter than it is no step (``core.after_step``'s restart test)."""
+    return 4.0 * np.finfo(np.float64).eps * max(abs(t), 1.0)
+
+
 @njit(borrows=True)
 def locate(slot, sgn, ta, fa, tb, fb, seg, ctx, hist, scratch):
     """Bracket [ta, tb] of a zero of ``sgn * g_slot`` (fa > 0 >= fb), located to
     round-off of t; returns the end point on the crossed side (sgn * g <= 0), so
     the event is known to have happened there."""
     s = stack_floats(STATE_SIZE, STATE_SIZE)  # the locator's state: no allocation
-    start(s, ta, fa, tb, fb, 4.0 * np.finfo(np.float64).eps * max(abs(ta), abs(tb), 1.0))
+    start(s, ta, fa, tb, fb, time_round_off(max(abs(ta), abs(tb))))
     for _ in range(MAX_TRIALS):
         if advance(s):
             break
@@ -81,9 +92,7 @@ def locate_with_rate(slot, j, sgn, ta, fa, da, tb, fb, db, seg, ctx, hist, scrat
     the locator interpolates with it and then takes Newton's steps (about 3 trials
     where Brent's method, with values only, takes 5 or 6)."""
     s = stack_floats(RATE_STATE_SIZE, RATE_STATE_SIZE)  # no allocation
-    start_with_rates(
-        s, ta, fa, da, tb, fb, db, 4.0 * np.finfo(np.float64).eps * max(abs(ta), abs(tb), 1.0)
-    )
+    start_with_rates(s, ta, fa, da, tb, fb, db, time_round_off(max(abs(ta), abs(tb))))
     for _ in range(MAX_TRIALS):
         if advance_with_rates(s):
             break

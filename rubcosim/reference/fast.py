@@ -117,14 +117,19 @@ def rk_step(t, y, f, h, mode, p, ip, hist, yd, K, y_new, f_new, ytmp, cnt):
     n = y.shape[0]
     for i in range(n):
         K[0, i] = f[i]
-    for s in range(1, N_STAGES):
-        stage_point(K, s, y, h, ytmp)
+    # The slope at the solution is the loop's last pass: one copy of the inlined
+    # right-hand side for all of them (each copy costs seconds of a cold compile)
+    for s in range(1, N_STAGES + 1):
+        if s < N_STAGES:
+            stage_point(K, s, y, h, ytmp)
+            ts, point = t + C[s] * h, ytmp
+        else:
+            solution_point(K, y, h, y_new)
+            ts, point = t + h, y_new
         # straight into K's row: K is a view that is not reference-counted (integrate's)
-        full_rhs(t + C[s] * h, ytmp, mode, p, ip, hist, yd, K[s])
-    solution_point(K, y, h, y_new)
-    full_rhs(t + h, y_new, mode, p, ip, hist, yd, f_new)
+        full_rhs(ts, point, mode, p, ip, hist, yd, K[s])
     for i in range(n):
-        K[N_STAGES, i] = f_new[i]
+        f_new[i] = K[N_STAGES, i]
     cnt[C_RHS] += N_STAGES
 
 

@@ -159,11 +159,21 @@ def casing_support_force(y: np.ndarray, p: np.ndarray, ip: np.ndarray):
     )
 
 
+# The contact laws below take the disc's other forces (fx, fy) from their caller, which
+# evaluates them once: each evaluation is a copy of the forcing's trigonometry in every
+# compiled right-hand side, and there are many of those (a cold compile's time).
 @nb.njit(cache=True, inline="always")
-def contact_normal_force(t, y, yd, p, ip, dist, nx, ny, vn, vt):
-    """Normal contact force on a disc in contact, N (> 0 pushes it inward)."""
+def needs_external_force(mode: int, ip: np.ndarray) -> bool:
+    """Whether the contact laws in ``mode`` read the disc's other forces: the rigid
+    stator's constraint force and every sticking contact do."""
+    return mode != MODE_FREE and (ip[IP_STATOR] == STATOR_RIGID or mode == MODE_STICK)
+
+
+@nb.njit(cache=True, inline="always")
+def contact_normal_force(fx, fy, p, ip, dist, nx, ny, vn, vt):
+    """Normal contact force on a disc in contact, N (> 0 pushes it inward); ``(fx, fy)``
+    every other force on the disc (:func:`disc_external_force`)."""
     if ip[IP_STATOR] == STATOR_RIGID:
-        fx, fy = disc_external_force(t, y, yd, p, ip)
         return constraint_normal_force(
             fx, fy, nx, ny, vt, vn, dist, p[P_STATOR_CLEARANCE], p[P_ROTOR_MASS], p[P_OMEGA_B]
         )
@@ -173,9 +183,9 @@ def contact_normal_force(t, y, yd, p, ip, dist, nx, ny, vn, vt):
 
 
 @nb.njit(cache=True, inline="always")
-def holding_friction(t, y, yd, p, ip, dist, nx, ny, vn, vt):
-    """Tangential force that keeps the slip speed at zero (sticking contact), N."""
-    fx, fy = disc_external_force(t, y, yd, p, ip)
+def holding_friction(fx, fy, y, p, ip, dist, nx, ny, vn, vt):
+    """Tangential force that keeps the slip speed at zero (sticking contact), N; ``(fx,
+    fy)`` every other force on the disc."""
     sx, sy = casing_support_force(y, p, ip)
     ms = p[P_STATOR_MASS] if ip[IP_STATOR_CASING_X] >= 0 else math.inf
     return sticking_friction(
@@ -184,15 +194,16 @@ def holding_friction(t, y, yd, p, ip, dist, nx, ny, vn, vt):
 
 
 @nb.njit(cache=True, inline="always")
-def contact_force(t, y, yd, mode, p, ip):
-    """Stator contact force on the disc (fx, fy) and its normal part, N."""
+def contact_force(fx, fy, y, mode, p, ip):
+    """Stator contact force on the disc (fx, fy) and its normal part, N; the arguments
+    ``(fx, fy)`` every other force on the disc (read when :func:`needs_external_force`)."""
     if ip[IP_STATOR] == STATOR_NONE or mode == MODE_FREE:
         return 0.0, 0.0, 0.0
     dist, nx, ny, vn, vt = contact_kinematics(y, p, ip)
-    n = contact_normal_force(t, y, yd, p, ip, dist, nx, ny, vn, vt)
+    n = contact_normal_force(fx, fy, p, ip, dist, nx, ny, vn, vt)
     hold = 0.0
     if mode == MODE_STICK:
-        hold = holding_friction(t, y, yd, p, ip, dist, nx, ny, vn, vt)
+        hold = holding_friction(fx, fy, y, p, ip, dist, nx, ny, vn, vt)
     ft = friction_force(mode, p[P_STATOR_FRICTION], n, hold)
     fx, fy = contact_force_components(n, ft, nx, ny)
     return fx, fy, n
@@ -216,7 +227,7 @@ def bearing_force(y: np.ndarray, p: np.ndarray, ip: np.ndarray):
 @nb.njit(cache=True, inline="always")
 def rotor_rhs(t, y, yd, mode, p, ip, dy):
     fx, fy = disc_external_force(t, y, yd, p, ip)
-    cfx, cfy, _ = contact_force(t, y, yd, mode, p, ip)
+    cfx, cfy, _ = contact_force(fx, fy, y, mode, p, ip)
     planar_newton(y, 0, fx + cfx, fy + cfy, p[P_ROTOR_MASS], dy)
     j = ip[IP_ROTOR_JOURNAL_X]
     if j >= 0:
@@ -253,7 +264,10 @@ def rotor_events(t, y, yd, mode, p, ip, g, dirs, rates):
         dirs[0] = -1
         rates[0] = 1
         return
-    n = contact_normal_force(t, y, yd, p, ip, dist, nx, ny, vn, vt)
+    fx, fy = 0.0, 0.0
+    if needs_external_force(mode, ip):
+        fx, fy = disc_external_force(t, y, yd, p, ip)
+    n = contact_normal_force(fx, fy, p, ip, dist, nx, ny, vn, vt)
     if kind == STATOR_RIGID:
         g[0] = n
         dirs[0] = -1
@@ -263,7 +277,7 @@ def rotor_events(t, y, yd, mode, p, ip, g, dirs, rates):
         dirs[0] = 1
         rates[0] = 1
     if mode == MODE_STICK:
-        hold = holding_friction(t, y, yd, p, ip, dist, nx, ny, vn, vt)
+        hold = holding_friction(fx, fy, y, p, ip, dist, nx, ny, vn, vt)
         g[2] = friction_reserve(p[P_STATOR_FRICTION], n, hold)
         dirs[2] = -1
     else:
@@ -289,8 +303,9 @@ def settle_contact(t, y, yd, p, ip, slip_threshold, current):
     """Mode of a disc in contact: sliding with the sign of the slip, or sticking
     if the slip is (below ``slip_threshold``) zero and friction can hold it."""
     dist, nx, ny, vn, vt = contact_kinematics(y, p, ip)
-    n = contact_normal_force(t, y, yd, p, ip, dist, nx, ny, vn, vt)
-    hold = holding_friction(t, y, yd, p, ip, dist, nx, ny, vn, vt)
+    fx, fy = disc_external_force(t, y, yd, p, ip)
+    n = contact_normal_force(fx, fy, p, ip, dist, nx, ny, vn, vt)
+    hold = holding_friction(fx, fy, y, p, ip, dist, nx, ny, vn, vt)
     reserve = friction_reserve(p[P_STATOR_FRICTION], n, hold)
     spin = p[P_ROTOR_DISC_RADIUS] * p[P_ROTOR_SPEED]  # surface speed Rd w
     mode = settle_mode(vt + spin, slip_threshold, reserve, hold, current)
@@ -388,7 +403,10 @@ def outputs(t, y, yd, mode, p, ip, out):
     if ip[IP_STATOR] != STATOR_NONE:
         cx, cy, _, _ = stator_centre(y, p, ip)
         out[i] = p[P_STATOR_CLEARANCE] - contact_geometry(y[0] - cx, y[1] - cy)[0]
-        _, _, n = contact_force(t, y, yd, mode, p, ip)
+        fx, fy = 0.0, 0.0
+        if needs_external_force(mode, ip):
+            fx, fy = disc_external_force(t, y, yd, p, ip)
+        _, _, n = contact_force(fx, fy, y, mode, p, ip)
         out[i + 1] = n
         out[i + 2] = 0.0 if mode == MODE_FREE else (2.0 if mode == MODE_STICK else 1.0)
         i += 3
