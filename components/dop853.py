@@ -24,6 +24,8 @@ C = np.ascontiguousarray(_dop.C)
 SAFETY = 0.9
 MIN_FACTOR = 0.2
 MAX_FACTOR = 10.0
+_EPS = 2.0**-52  # an ulp of a number in [1, 2)
+_NORMAL = 2.0**-1022  # the smallest normal number: an ulp below it is _NORMAL * _EPS
 
 
 @njit(inline="always")
@@ -51,9 +53,11 @@ def _err_power(err):
     return 1.0 / math.sqrt(math.sqrt(math.sqrt(err)))
 
 
-@njit
+@njit(inline="always")
 def step_factor(err, rejected):
-    """Factor on the step after an error norm ``err``; below 1 the step is accepted."""
+    """Factor on the step after an error norm ``err``; below 1 the step is accepted.
+    Inlined: the next step waits for its chain of square roots, and a call of its own
+    added a few nanoseconds a step to that wait (as numba returns through memory)."""
     if err < 1.0:
         factor = MAX_FACTOR if err == 0.0 else min(MAX_FACTOR, SAFETY * _err_power(err))
         return min(1.0, factor) if rejected else factor
@@ -81,6 +85,25 @@ def dense_from_stages(h, y_old, y_new, f_new, K, F):
         F[4, i] = h * d1
         F[5, i] = h * d2
         F[6, i] = h * d3
+
+
+@njit(inline="always")
+def min_step(t):
+    """The shortest step from time ``t``, s: 10 ulps of t (scipy's rule)."""
+    return 10.0 * abs(np.nextafter(t, np.inf) - t)
+
+
+@njit(inline="always")
+def below_min_step(h, t):
+    """Whether a step of ``h`` >= 0 s from time ``t`` is shorter than :func:`min_step`.
+
+    ``10 max(|t|, 2**-1022) 2**-52`` is at least :func:`min_step` for every finite t
+    below the largest double, and a step is far longer at almost every step: that test
+    decides first.  ``nextafter`` is a libm call, which makes a compiled step loop
+    spill every register it keeps live across it.  (The bound takes no subnormal
+    operand: one costs a microcode assist.)
+    """
+    return h < 10.0 * (max(abs(t), _NORMAL) * _EPS) and h < min_step(t)
 
 
 @njit(inline="always")

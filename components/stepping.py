@@ -169,8 +169,7 @@ def advance(kind, t0, t_end, y, mode, h, p, u, rtol, atol):
     impacts = 0
     n_events = 0
     while t < t_end:
-        min_step = 10.0 * abs(np.nextafter(t, np.inf) - t)
-        if h < min_step:
+        if rk.below_min_step(h, t):
             return h, mode, impacts, STEP_TOO_SMALL
         t_new = t + h
         clipped = t_new >= t_end

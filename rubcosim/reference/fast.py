@@ -18,8 +18,10 @@ from rubcosim.components.dop853 import (
     N_EXT,
     N_STAGES,
     C,
+    below_min_step,
     dense_from_stages,
     error_norm,
+    min_step,
     next_step,
     solution_point,
     stage_point,
@@ -222,14 +224,13 @@ def integrate(y0, mode, t0, t_end, p, ip, tol, out, hist, dde, y_final, tan):
                 t, y, f, bound, max_step, rtol, atol, mode, p, ip, hist, yd, ytmp, y_new, cnt
             )
         while t < bound and cnt[C_STATUS] == STATUS_OK:
-            min_step = 10.0 * abs(np.nextafter(t, np.inf) - t)
             if h_abs > max_step:
                 h_abs = max_step
-            elif h_abs < min_step:
-                h_abs = min_step
+            elif below_min_step(h_abs, t):
+                h_abs = min_step(t)
             rejected = False
             while True:
-                if h_abs < min_step:
+                if below_min_step(h_abs, t):
                     cnt[C_STATUS] = STATUS_STEP_TOO_SMALL
                     break
                 t_new = t + h_abs
@@ -255,9 +256,10 @@ def integrate(y0, mode, t0, t_end, p, ip, tol, out, hist, dde, y_final, tan):
                 # Nothing to record, no delay to feed, no event possible: move on.
                 if tan is not None:  # compiled away without one: no call, no arguments
                     tangent_step(tan, t, h, y, K, mode, p, ip, hist, yd)
-                for i in range(n):
-                    y[i] = y_new[i]
-                    f[i] = f_new[i]
+                # the new state and slope by exchanging the arrays' roles, not by
+                # copying: LLVM makes a copy loop two memcpy calls, at every step
+                y, y_new = y_new, y
+                f, f_new = f_new, f
                 for i in range(N_EVENTS):
                     g_a[i] = g_b[i]
                 sides_from(g_b, side)
@@ -270,14 +272,13 @@ def integrate(y0, mode, t0, t_end, p, ip, tol, out, hist, dde, y_final, tan):
             if tan is not None:
                 modes = (mode, mode_next, fs)
                 tangent_after(tan, (t, h, y, F), K, t_next, modes, y_next, out, p, ip, hist, yd)
-            y[:] = y_next
+            y, y_next = y_next, y
             t = t_next
             if fs >= 0 or mode_next != mode:
                 mode = mode_next
                 forced_slot, forced_side = fs, fside
                 break
-            for i in range(n):
-                f[i] = f_new[i]
+            f, f_new = f_new, f
     y_final[:] = y
     keep_alive(owners)
     return t, mode
