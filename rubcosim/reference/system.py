@@ -205,8 +205,8 @@ def contact_force(fx, fy, y, mode, p, ip):
     if mode == MODE_STICK:
         hold = holding_friction(fx, fy, y, p, ip, dist, nx, ny, vn, vt)
     ft = friction_force(mode, p[P_STATOR_FRICTION], n, hold)
-    fx, fy = contact_force_components(n, ft, nx, ny)
-    return fx, fy, n
+    cfx, cfy = contact_force_components(n, ft, nx, ny)
+    return cfx, cfy, n
 
 
 @nb.njit(cache=True, inline="always")
