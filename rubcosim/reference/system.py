@@ -163,10 +163,13 @@ def casing_support_force(y: np.ndarray, p: np.ndarray, ip: np.ndarray):
 # evaluates them once: each evaluation is a copy of the forcing's trigonometry in every
 # compiled right-hand side, and there are many of those (a cold compile's time).
 @nb.njit(cache=True, inline="always")
-def needs_external_force(mode: int, ip: np.ndarray) -> bool:
-    """Whether the contact laws in ``mode`` read the disc's other forces: the rigid
-    stator's constraint force and every sticking contact do."""
-    return mode != MODE_FREE and (ip[IP_STATOR] == STATOR_RIGID or mode == MODE_STICK)
+def force_for_contact_laws(t, y, yd, mode, p, ip):
+    """The disc's other forces (:func:`disc_external_force`, N) where the contact laws in
+    ``mode`` read them, else zeros: the rigid stator's constraint force and every
+    sticking contact read them; free flight and an elastic stator's sliding do not."""
+    if mode != MODE_FREE and (ip[IP_STATOR] == STATOR_RIGID or mode == MODE_STICK):
+        return disc_external_force(t, y, yd, p, ip)
+    return 0.0, 0.0
 
 
 @nb.njit(cache=True, inline="always")
@@ -196,7 +199,7 @@ def holding_friction(fx, fy, y, p, ip, dist, nx, ny, vn, vt):
 @nb.njit(cache=True, inline="always")
 def contact_force(fx, fy, y, mode, p, ip):
     """Stator contact force on the disc (fx, fy) and its normal part, N; the arguments
-    ``(fx, fy)`` every other force on the disc (read when :func:`needs_external_force`)."""
+    ``(fx, fy)`` every other force on the disc (read where :func:`force_for_contact_laws` says)."""
     if ip[IP_STATOR] == STATOR_NONE or mode == MODE_FREE:
         return 0.0, 0.0, 0.0
     dist, nx, ny, vn, vt = contact_kinematics(y, p, ip)
@@ -264,9 +267,7 @@ def rotor_events(t, y, yd, mode, p, ip, g, dirs, rates):
         dirs[0] = -1
         rates[0] = 1
         return
-    fx, fy = 0.0, 0.0
-    if needs_external_force(mode, ip):
-        fx, fy = disc_external_force(t, y, yd, p, ip)
+    fx, fy = force_for_contact_laws(t, y, yd, mode, p, ip)
     n = contact_normal_force(fx, fy, p, ip, dist, nx, ny, vn, vt)
     if kind == STATOR_RIGID:
         g[0] = n
@@ -403,9 +404,7 @@ def outputs(t, y, yd, mode, p, ip, out):
     if ip[IP_STATOR] != STATOR_NONE:
         cx, cy, _, _ = stator_centre(y, p, ip)
         out[i] = p[P_STATOR_CLEARANCE] - contact_geometry(y[0] - cx, y[1] - cy)[0]
-        fx, fy = 0.0, 0.0
-        if needs_external_force(mode, ip):
-            fx, fy = disc_external_force(t, y, yd, p, ip)
+        fx, fy = force_for_contact_laws(t, y, yd, mode, p, ip)
         _, _, n = contact_force(fx, fy, y, mode, p, ip)
         out[i + 1] = n
         out[i + 2] = 0.0 if mode == MODE_FREE else (2.0 if mode == MODE_STICK else 1.0)
