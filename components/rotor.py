@@ -69,7 +69,10 @@ def jeffcott_force(
 ) -> tuple[float, float]:
     """All forces on a Jeffcott disc except contact and control, N."""
     ux, uy = unbalance_force(t, m, e, w)
-    return ux - c * vx - k * x, uy - c * vy - k * y - m * g
+    fy = uy - c * vy - k * y
+    if g != 0.0:  # x - 0.0 is x: without gravity, one subtraction less on the stages' chain
+        fy -= m * g
+    return ux - c * vx - k * x, fy
 
 
 @njit

@@ -211,7 +211,7 @@ def simulate(
         t=t_eval,
         outputs=rec,
         output_names=list(system.output_names),
-        events=Events(*(a[:n_ev] for a in evlog)),
+        events=Events(*(a[:n_ev].copy() for a in evlog)),
         status=status,
         message=message,
         t_reached=float(t_reached),

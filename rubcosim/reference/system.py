@@ -126,6 +126,10 @@ def disc_external_force(t: float, y: np.ndarray, yd: np.ndarray, p: np.ndarray, 
             t, x, yy, vx, vy, p[P_ROTOR_MASS], p[P_ROTOR_DAMPING], p[P_ROTOR_STIFFNESS],
             p[P_ROTOR_ECCENTRICITY], p[P_ROTOR_SPEED], p[P_ROTOR_GRAVITY],
         )  # fmt: skip
+    if not control_active(t, p, ip):
+        # no control force: adding its zeros would put one more addition on the chain
+        # from one Runge-Kutta stage to the next (x + 0.0 is x, but for the sign of a zero)
+        return fx, fy
     ux, uy = control_force(t, y, yd, p, ip)
     return fx + ux, fy + uy
 
@@ -231,7 +235,10 @@ def bearing_force(y: np.ndarray, p: np.ndarray, ip: np.ndarray):
 def rotor_rhs(t, y, yd, mode, p, ip, dy):
     fx, fy = disc_external_force(t, y, yd, p, ip)
     cfx, cfy, _ = contact_force(fx, fy, y, mode, p, ip)
-    planar_newton(y, 0, fx + cfx, fy + cfy, p[P_ROTOR_MASS], dy)
+    if mode == MODE_FREE:  # no contact force to add (see disc_external_force)
+        planar_newton(y, 0, fx, fy, p[P_ROTOR_MASS], dy)
+    else:
+        planar_newton(y, 0, fx + cfx, fy + cfy, p[P_ROTOR_MASS], dy)
     j = ip[IP_ROTOR_JOURNAL_X]
     if j >= 0:
         jx, jy = journal_force(
