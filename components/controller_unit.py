@@ -29,7 +29,7 @@ from .controller import (
     switch_interval,
 )
 from .declaration import Derived, FmuIdentity, Need, UnitType, Wire
-from .delay_history import FILTER_PAIR, ROW, SAMPLE, lookup
+from .delay_history import FILTER_PAIR, ROW, SAMPLE, first_kept, lookup
 from .parameters import nonnegative
 from .unit import Unit, planar_motion, real_signal
 
@@ -157,11 +157,10 @@ class DelayedFeedbackUnit(Unit):
             sx, sy = self._filter(hist[hist[:, 0] < t], t)
         # the oldest time still needed: the next step's outputs look back to t + h - tau,
         # its filter's jumps arrive from jumps after t - tau (the longest delay);
-        # keep three samples before it, for the stencil
+        # keep three samples of the signal before it, for the stencil, so that no
+        # lookup from it on changes (first_kept)
         keep = t - self.tau0 - self.params["modulation_amplitude"]
-        first = max(int(np.searchsorted(hist[:, 0], keep)) - 3, 0)
-        if 0 < first < hist.shape[0] and hist[first, 0] == hist[first - 1, 0]:
-            first -= 1  # never split the two samples of a jump
+        first = int(first_kept(np.ascontiguousarray(hist, dtype=np.float64), keep))
         self.state["history"] = np.vstack((hist[first:], [[t, zx, zy, sx, sy, SAMPLE]]))
 
     def _delayed(self, tq: float) -> tuple[float, float]:

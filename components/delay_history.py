@@ -73,14 +73,46 @@ def _interpolate_rows(samples, rows, m, tq, left, c0, out, o):  # pragma: no cov
 
 
 @njit
+def _filter_only(samples, r):  # pragma: no cover - compiled
+    """Whether row ``r`` is the second row of a jump or kink of the filter alone (no
+    sample of the signal: the signal's interpolation skips it)."""
+    if r == 0 or samples[r, 0] != samples[r - 1, 0]:
+        return False
+    same_z = samples[r, 1] == samples[r - 1, 1] and samples[r, 2] == samples[r - 1, 2]
+    return same_z and (samples.shape[1] <= 5 or samples[r, 5] == FILTER_PAIR)
+
+
+@njit
+def first_kept(samples, keep):  # pragma: no cover - compiled
+    """The first row of ``samples`` a history must keep to look up every time from
+    ``keep`` on as before: three samples of the signal before ``keep`` (a stencil
+    clamped by the end of its piece reaches three samples back; the second row of a
+    jump of the filter alone is no sample of the signal), and never one row of a
+    jump without the other."""
+    lo, hi = 0, samples.shape[0]
+    while lo < hi:  # numpy's searchsorted (left) of keep among the times
+        mid = (lo + hi) // 2
+        if samples[mid, 0] < keep:
+            lo = mid + 1
+        else:
+            hi = mid
+    first, count = lo, 0
+    while first > 0 and count < 3:
+        first -= 1
+        if not _filter_only(samples, first):
+            count += 1
+    while first > 0 and samples[first, 0] == samples[first - 1, 0]:
+        first -= 1
+    return first
+
+
+@njit
 def _lookup(samples, tq, left, out):  # pragma: no cover - compiled
     n = samples.shape[0]
     rows = np.empty(n, dtype=np.int64)
     m = 0
     for r in range(n):  # the signal: without the second row of a jump of the filter alone
-        same_z = samples[r, 1] == samples[r - 1, 1] and samples[r, 2] == samples[r - 1, 2]
-        s_only = samples.shape[1] <= 5 or samples[r, 5] == FILTER_PAIR
-        if r > 0 and samples[r, 0] == samples[r - 1, 0] and same_z and s_only:
+        if _filter_only(samples, r):
             continue
         rows[m] = r
         m += 1

@@ -39,7 +39,7 @@ from .controller import (
     piece_index,
     switch_interval,
 )
-from .delay_history import FILTER_PAIR, SAMPLE, _lookup
+from .delay_history import FILTER_PAIR, SAMPLE, _lookup, first_kept
 from .flat_rows import STEP_BAD_INPUT, STEP_NO_ROOM, STEP_NOT_FINITE, STEP_OK, T, U, Y
 from .jit import njit
 
@@ -246,19 +246,7 @@ def controller_step(p, cs, buf, scratch, x, y, vx, vy, t):  # pragma: no cover -
             k = _gather(buf, a, m, b, r, scratch)
             sx, sy = _filter(p, scratch, k, tq, False, zx, zy, out)
         b += r
-    keep = t - p[C_TAU0] - p[C_EPS]
-    first = a  # numpy's searchsorted (left) of keep among the times
-    hi = b
-    while first < hi:
-        mid = (first + hi) // 2
-        if buf[mid, 0] < keep:
-            first = mid + 1
-        else:
-            hi = mid
-    first = max(first - a - 3, 0)
-    if 0 < first < b - a and buf[a + first, 0] == buf[a + first - 1, 0]:
-        first -= 1
-    a += first
+    a += first_kept(buf[a:b], t - p[C_TAU0] - p[C_EPS])
     if b >= buf.shape[0]:
         return FULL
     buf[b, 0], buf[b, 1], buf[b, 2], buf[b, 3], buf[b, 4] = t, zx, zy, sx, sy

@@ -15,6 +15,7 @@ from rubcosim.components.controller import base_delay
 from rubcosim.components.delay_history import (
     FILTER_PAIR,
     SAMPLE,
+    first_kept,
     lagrange_cubic,
     lookup,
     lookup_arrays,
@@ -361,6 +362,18 @@ def test_compiled_history_lookup_agrees_with_array_operations_bit_for_bit(seed):
     # (a pair of the filter alone, a jump of the signal, an equal pair: a kink), with and
     # without the rows' kind column
     rng = np.random.default_rng(seed)
+    rows = _random_history(rng)
+    queries = np.concatenate((rows[:, 0], rng.uniform(-0.1, 1.1, 20)))
+    for samples in (rows, rows[:, :5]):
+        for tq in queries:
+            for side in ("left", "right"):
+                got = lookup(samples, tq, side)
+                assert np.array_equal(got, lookup_arrays(samples, tq, side))
+
+
+def _random_history(rng: np.random.Generator) -> np.ndarray:
+    """Rows (t, zx, zy, Sx, Sy, kind) at sorted random times, with pairs at one time:
+    jumps of the filter alone, of the signal and the filter, and kinks (equal pairs)."""
     n = int(rng.integers(1, 40))
     ts = np.sort(rng.uniform(0.0, 1.0, n))
     rows = np.column_stack((ts, rng.normal(size=(n, 4)), np.full(n, SAMPLE)))
@@ -374,12 +387,29 @@ def test_compiled_history_lookup_agrees_with_array_operations_bit_for_bit(seed):
         elif kind == 1:  # the signal and the filter
             extra[1:5] = rng.normal(size=4)
         rows = np.insert(rows, r + 1, extra, axis=0)
-    queries = np.concatenate((rows[:, 0], rng.uniform(-0.1, 1.1, 20)))
-    for samples in (rows, rows[:, :5]):
-        for tq in queries:
-            for side in ("left", "right"):
-                got = lookup(samples, tq, side)
-                assert np.array_equal(got, lookup_arrays(samples, tq, side))
+    return rows
+
+
+@pytest.mark.parametrize("seed", range(40))
+def test_trimming_the_history_changes_no_lookup_after_the_kept_time(seed):
+    # The controller drops the rows older than it needs at every step (first_kept).
+    # A lookup between the kept time and the newest sample (the delayed times the next
+    # step asks for) must give what the whole history gives: a trim that moved a
+    # stencil made the force jump within a step, and the master shrank that step to
+    # its minimum (two samples 1.7e-11 s apart whose filters disagreed by 3e-8;
+    # through them, one delay later, a 2.4 N spike).
+    rng = np.random.default_rng(seed)
+    rows = _random_history(rng)
+    last = rows[-1, 0]
+    for keep in np.concatenate((rows[:, 0], rng.uniform(-0.1, last, 10))):
+        later = rows[(rows[:, 0] > keep), 0]
+        for samples in (rows, np.ascontiguousarray(rows[:, :5])):  # with, without the kind
+            first = int(first_kept(samples, keep))
+            assert first == 0 or rows[first, 0] != rows[first - 1, 0]  # no pair split
+            kept = samples[first:]
+            for tq in np.concatenate(([keep], later, rng.uniform(keep, last, 5))):
+                for side in ("left", "right"):
+                    assert np.array_equal(lookup(kept, tq, side), lookup(samples, tq, side))
 
 
 def _reference_oscillator(params: dict, times: np.ndarray) -> np.ndarray:
