@@ -89,14 +89,7 @@ def first_kept(samples, keep):  # pragma: no cover - compiled
     clamped by the end of its piece reaches three samples back; the second row of a
     jump of the filter alone is no sample of the signal), and never one row of a
     jump without the other."""
-    lo, hi = 0, samples.shape[0]
-    while lo < hi:  # numpy's searchsorted (left) of keep among the times
-        mid = (lo + hi) // 2
-        if samples[mid, 0] < keep:
-            lo = mid + 1
-        else:
-            hi = mid
-    first, count = lo, 0
+    first, count = int(np.searchsorted(samples[:, 0], keep)), 0
     while first > 0 and count < 3:
         first -= 1
         if not _filter_only(samples, first):
