@@ -25,7 +25,7 @@ if not _BUNDLED or os.environ.get("RUBCOSIM_NUMBA") == "1":
         _numba = None
 USE_NUMBA = _numba is not None
 if USE_NUMBA:
-    from .numba_inlining import install_before_first_compile
+    from .numba_compile_time import install_before_first_compile
 
     install_before_first_compile()
 

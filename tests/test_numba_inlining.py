@@ -15,7 +15,7 @@ from numba.core import inline_closurecall
 from numba.core.compiler import run_frontend
 
 from rubcosim.components import jit  # noqa: F401  (registers the install on first compile)
-from rubcosim.components.numba_inlining import BlockGraphCopy, install
+from rubcosim.components.numba_inlining import BlockGraphCopy, CalleeMemo, install
 
 
 def _branchy(x, n):
@@ -123,3 +123,74 @@ def _outer_in_python(x, n):
 def test_nested_inlined_code_computes_what_python_computes(x):
     expected = _outer_in_python(x, 5)
     assert _outer(x, 5) == pytest.approx(expected, rel=1e-15, abs=0.0)
+
+
+@numba.njit(inline="always")
+def _leaf(x, k):
+    return x * k - 1.0 if x > k else x + k
+
+
+@numba.njit(inline="always")
+def _branch(x, n):
+    acc = 0.0
+    for k in range(n):
+        acc += _leaf(x, k) * _leaf(x - 1.0, k)
+    return acc
+
+
+@numba.njit
+def _root(x, n):
+    return _branch(x, n) - _branch(2.0 * x, n) + _leaf(x, n)
+
+
+@numba.njit(_nrt=False)
+def _other_root(x, n):
+    return _branch(x + 0.5, n) * _leaf(x, n)
+
+
+def _root_in_python(x, n, other=False):
+    def leaf(x, k):
+        return x * k - 1.0 if x > k else x + k
+
+    def branch(x, n):
+        return sum(leaf(x, k) * leaf(x - 1.0, k) for k in range(n))
+
+    if other:
+        return branch(x + 0.5, n) * leaf(x, n)
+    return branch(x, n) - branch(2.0 * x, n) + leaf(x, n)
+
+
+def test_each_inlined_callee_is_built_once(monkeypatch):
+    """Five call sites of _leaf and three of _branch over two callers (one compiled
+    without reference counting, a flag the untyped pipeline does not read): numba
+    would build the callees' IR eight times (more, nested); the memo builds each once,
+    and the stored IR is the same after every inlining (it is copied, not changed)."""
+    assert install() is True
+    built = []
+    original = inline_closurecall.InlineWorker.run_untyped_passes
+
+    def counting(self, func, enable_ssa=False):
+        built.append(func.__name__)
+        return original(self, func, enable_ssa)
+
+    monkeypatch.setattr(inline_closurecall.InlineWorker, "run_untyped_passes", counting)
+    assert _root(1.5, 4) == pytest.approx(_root_in_python(1.5, 4), rel=1e-15, abs=0.0)
+    assert sorted(built) == ["_branch", "_leaf"]
+    memo = inline_closurecall.InlineWorker.inline_function.__closure__
+    (store,) = [c.cell_contents for c in memo if isinstance(c.cell_contents, CalleeMemo)]
+    stored = _stored_ir(store)
+    expected = _root_in_python(0.25, 3, other=True)
+    assert _other_root(0.25, 3) == pytest.approx(expected, rel=1e-15, abs=0.0)
+    assert sorted(built) == ["_branch", "_leaf"]
+    assert _stored_ir(store) == stored
+
+
+def _stored_ir(store):
+    return {
+        function.__name__: [
+            [(label, [str(stmt) for stmt in block.body]) for label, block in ir.blocks.items()]
+            for _, ir in entries
+        ]
+        for function, entries in store._built.items()
+        if function in (_leaf.py_func, _branch.py_func)
+    }
