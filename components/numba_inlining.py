@@ -109,13 +109,27 @@ class CalleeMemo:
     inner one's pipeline ``a * b`` times.  The IR depends only on the function and
     on the options the pipeline reads (the worker's contexts, flags, locals and
     pipeline), so one build per such key gives the same IR; a cold compile of the
-    ``fast`` engine inlines some 370 callees and builds 70 of them.  ``inline_ir`` copies
-    the callee's IR before it changes anything (``copy_ir``), so the stored IR is
-    never modified.
+    ``fast`` engine inlines some 370 callees and builds 77 of them.  ``inline_ir``
+    copies the callee's IR before it changes anything (``copy_ir``), so the stored IR
+    is never modified.
+
+    Only the functions of ``packages`` (rubcosim's, or an FMU's bundled copy of it)
+    are kept: a host program's own numba code compiles as numba compiles it (an IR
+    holds the globals' values at its build, and a program may change a global
+    between two compilations).
     """
 
     def __init__(self) -> None:
         self._built: dict[Any, list[tuple[tuple[Any, ...], Any]]] = {}
+        self.packages = {__name__.partition(".")[0]}
+
+    def covers(self, function: Any) -> bool:
+        """Whether the IR of ``function`` is built once: a function of ``packages``, or
+        of a module they generate (``hybrid_dispatch``: ``<package>_..._<digest>``)."""
+        module = getattr(function, "__module__", None) or ""
+        return any(
+            module.partition(".")[0] == p or module.startswith(p + "_") for p in self.packages
+        )
 
     def callee_ir(self, worker: Any, function: Any, build: Callable[[], Any]) -> Any:
         options = (
@@ -156,6 +170,8 @@ def _install_callee_memo(icc: Any) -> bool:
     def inline_function(
         self: Any, caller_ir: Any, block: Any, i: int, function: Any, arg_typs: Any = None
     ) -> Any:
+        if not memo.covers(function):
+            return original(self, caller_ir, block, i, function, arg_typs=arg_typs)
         callee_ir = memo.callee_ir(self, function, lambda: self.run_untyped_passes(function))
         return self.inline_ir(
             caller_ir, block, i, callee_ir, function.__code__.co_freevars, arg_typs=arg_typs

@@ -160,12 +160,18 @@ def _root_in_python(x, n, other=False):
     return branch(x, n) - branch(2.0 * x, n) + leaf(x, n)
 
 
-def test_each_inlined_callee_is_built_once(monkeypatch):
-    """Five call sites of _leaf and three of _branch over two callers (one compiled
-    without reference counting, a flag the untyped pipeline does not read): numba
-    would build the callees' IR eight times (more, nested); the memo builds each once,
-    and the stored IR is the same after every inlining (it is copied, not changed)."""
-    assert install() is True
+@numba.njit
+def _host_root(x, n):
+    return _leaf(x, n) + _leaf(-x, n)
+
+
+def _memo():
+    cells = inline_closurecall.InlineWorker.inline_function.__closure__
+    (memo,) = [c.cell_contents for c in cells if isinstance(c.cell_contents, CalleeMemo)]
+    return memo
+
+
+def _count_builds(monkeypatch):
     built = []
     original = inline_closurecall.InlineWorker.run_untyped_passes
 
@@ -174,10 +180,32 @@ def test_each_inlined_callee_is_built_once(monkeypatch):
         return original(self, func, enable_ssa)
 
     monkeypatch.setattr(inline_closurecall.InlineWorker, "run_untyped_passes", counting)
+    return built
+
+
+def test_a_host_programs_callees_are_built_as_numba_builds_them(monkeypatch):
+    """Functions outside rubcosim (this test module's) are built at every call site."""
+    assert install() is True
+    assert _memo().covers(install) and not _memo().covers(_leaf.py_func)
+    built = _count_builds(monkeypatch)
+    assert _host_root(0.5, 2) == (0.5 + 2) + (-0.5 + 2)
+    assert built == ["_leaf", "_leaf"]
+
+
+def test_each_inlined_callee_is_built_once(monkeypatch):
+    """Five call sites of _leaf and three of _branch over two callers (one compiled
+    without reference counting, a flag the untyped pipeline does not read): numba
+    would build the callees' IR eight times (more, nested); the memo builds each once,
+    and the stored IR is the same after every inlining (it is copied, not changed)."""
+    assert install() is True
+    store = _memo()
+    # these test kernels stand for rubcosim's own
+    monkeypatch.setattr(
+        store, "packages", store.packages | {_leaf.py_func.__module__.partition(".")[0]}
+    )
+    built = _count_builds(monkeypatch)
     assert _root(1.5, 4) == pytest.approx(_root_in_python(1.5, 4), rel=1e-15, abs=0.0)
     assert sorted(built) == ["_branch", "_leaf"]
-    memo = inline_closurecall.InlineWorker.inline_function.__closure__
-    (store,) = [c.cell_contents for c in memo if isinstance(c.cell_contents, CalleeMemo)]
     stored = _stored_ir(store)
     expected = _root_in_python(0.25, 3, other=True)
     assert _other_root(0.25, 3) == pytest.approx(expected, rel=1e-15, abs=0.0)
