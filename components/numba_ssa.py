@@ -46,10 +46,11 @@ def _blocks_naming(blocks: dict[int, Any]) -> defaultdict[str, set[int]]:
     return index
 
 
-def _rewrite(ssa: Any, blocks: dict[int, Any], labels: set[int], states: dict, handler: Any):
+def _rewrite(blocks: dict[int, Any], labels: set[int], states: dict, handler: Any):
     """numba's ``_run_block_rewrite`` over the blocks in ``labels``; the others as they
     are (the handlers return every statement that does not name the variable)."""
-    ir = ssa.ir
+    from numba.core import ir, ssa
+
     new = {}
     for label, block in blocks.items():
         if label not in labels:
@@ -65,7 +66,7 @@ def _rewrite(ssa: Any, blocks: dict[int, Any], labels: set[int], states: dict, h
 
 def run_ssa(blocks: dict[int, Any]) -> dict[int, Any]:
     """``numba.core.ssa._run_ssa``: the blocks of a function in SSA form."""
-    from numba.core import errors, ssa
+    from numba.core import errors, ir, ssa
 
     if not blocks:
         return {}
@@ -80,7 +81,7 @@ def run_ssa(blocks: dict[int, Any]) -> dict[int, Any]:
         states = ssa._make_states(blocks)
         states["varname"] = varname
         states["defmap"] = defmap = defaultdict(list)
-        blocks = _rewrite(ssa, blocks, labels, states, ssa._FreshVarHandler())
+        blocks = _rewrite(blocks, labels, states, ssa._FreshVarHandler())
         # the uses to their reaching definitions, phi nodes where needed (_fix_ssa_vars)
         states = ssa._make_states(blocks)
         states["varname"] = varname
@@ -88,11 +89,11 @@ def run_ssa(blocks: dict[int, Any]) -> dict[int, Any]:
         states["phimap"] = phimap = defaultdict(list)
         states["cfg"] = cfg
         states["phi_locations"] = ssa._compute_phi_locations(df_plus, defmap)
-        blocks = _rewrite(ssa, blocks, labels, states, ssa._FixSSAVars(cache_list_vars))
+        blocks = _rewrite(blocks, labels, states, ssa._FixSSAVars(cache_list_vars))
         for label, philist in phimap.items():
-            # a new block, as numba's rewrite makes: the input's blocks stay as they were
+            # into a new block, as numba's pass does: no block of the input gets a phi
             old = blocks[label]
-            blocks[label] = ssa.ir.Block(scope=old.scope, loc=old.loc)
+            blocks[label] = ir.Block(scope=old.scope, loc=old.loc)
             blocks[label].body = philist + old.body
     if ssa.compute_cfg_from_blocks(blocks) != cfg:
         raise errors.CompilerError("CFG mutated in SSA pass")
