@@ -324,3 +324,36 @@ def test_piecewise_linear_stop_contact_duration(stop):
     if stop == "elastic_two_sided":
         assert np.any(res.events.slot == 2)  # the lower stop is hit too
     assert np.all(np.abs(res.output("oscillator.x")) <= amp + 1e-9)  # no energy gained
+
+
+def test_a_reused_event_log_leaves_every_result_its_own_events():
+    # simulate keeps the event log between runs (reference/simulate.py): a result must
+    # hold copies, and a run on a log full of an earlier run's events must log exactly
+    # what a run on a new log does
+    import importlib
+
+    # the package exports the function under the module's name: the module itself
+    sim_module = importlib.import_module("rubcosim.reference.simulate")
+
+    def oscillator(x0):
+        unit = make_unit(
+            "oscillator",
+            "impact_oscillator",
+            dict(linear_stiffness=1.0, forcing_frequency=1.0, barrier=0.5, restitution=0.8, x0=x0),
+        )
+        return build_system({"oscillator": unit})
+
+    first = simulate(oscillator(-1.0), 20.0, engine="fast", rtol=1e-9)
+    kept = {k: getattr(first.events, k).copy() for k in ("t", "kind", "slot", "mode", "state")}
+    assert len(first.events.t) > 3
+    log = sim_module._SPARE_LOGS[(100_000, 2)]
+    second = simulate(oscillator(-0.9), 15.0, engine="fast", rtol=1e-9)
+    assert sim_module._SPARE_LOGS[(100_000, 2)] is log  # taken and given back
+    for name, values in kept.items():
+        np.testing.assert_array_equal(getattr(first.events, name), values)
+    sim_module._SPARE_LOGS.clear()
+    fresh = simulate(oscillator(-0.9), 15.0, engine="fast", rtol=1e-9)
+    assert len(second.events.t) == len(fresh.events.t) > 2
+    for name in kept:
+        np.testing.assert_array_equal(getattr(second.events, name), getattr(fresh.events, name))
+    assert first.events.t[0] != second.events.t[0]

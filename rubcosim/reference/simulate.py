@@ -86,6 +86,27 @@ class Result:
 
 _WARM: set[tuple[str, bool]] = set()
 
+# Event logs kept between runs, one per (capacity, states), a few capacities at most.
+# A log holds max_events rows (6.4 MB for the default and a rotor); made afresh at
+# every run, it is mapped and unmapped by the allocator each time, and each page the
+# run writes faults again: 25 us of a rotor run's 40 us of fixed cost, measured.
+# A result copies its events out, so the log is free again when simulate returns.
+_SPARE_LOGS: dict[tuple[int, int], tuple[np.ndarray, ...]] = {}
+_MAX_SPARE_LOGS = 4
+
+
+def _take_event_log(max_events: int, n_state: int) -> tuple[np.ndarray, ...]:
+    # dict.pop is atomic: two threads never get the same log
+    log = _SPARE_LOGS.pop((max_events, n_state), None)
+    return log if log is not None else new_event_log(max_events, n_state)
+
+
+def _return_event_log(log: tuple[np.ndarray, ...]) -> None:
+    key = (log[0].shape[0], log[4].shape[1])
+    while len(_SPARE_LOGS) >= _MAX_SPARE_LOGS and key not in _SPARE_LOGS:
+        _SPARE_LOGS.pop(next(iter(_SPARE_LOGS), key), None)  # the longest kept
+    _SPARE_LOGS[key] = log
+
 
 def _warm_up(
     system: System, engine: str, t_start: float, rtol: float, atol: float, max_step: float
@@ -162,7 +183,7 @@ def simulate(
     capacity = history_capacity
     while True:
         rec = np.full((t_eval.shape[0], len(system.output_names)), np.nan)
-        evlog = new_event_log(max_events, n)
+        evlog = _take_event_log(max_events, n)
         # No controller, no history: the engines compile a delay-free variant.
         hist = new_history(capacity, t_start, system.y0) if system.has_delay else None
         queue, qmeta = new_queue(capacity if system.has_delay else 1)
@@ -203,6 +224,8 @@ def simulate(
             continue
         break
     n_ev = min(int(cnt[C_EVENTS]), max_events)
+    events = Events(*(a[:n_ev].copy() for a in evlog))
+    _return_event_log(evlog)
     status = int(cnt[C_STATUS])
     message = STATUS_MESSAGES[status]
     if status != STATUS_OK:
@@ -212,7 +235,7 @@ def simulate(
         t=t_eval,
         outputs=rec,
         output_names=list(system.output_names),
-        events=Events(*(a[:n_ev].copy() for a in evlog)),
+        events=events,
         status=status,
         message=message,
         t_reached=float(t_reached),
