@@ -39,11 +39,15 @@ runs).  The wall time covers the whole call (``simulate(...)`` or the scipy loop
 The floor of ``fast`` (issue: "within 2x of its right-hand-side floor"): its
 right-hand-side calls per period times the cost of one compiled call, measured in a
 compiled loop of calls spread over a forcing period; the ratio of ``fast``'s time to
-that floor is what its step control, event location and bookkeeping add.  The calls
-of that loop are independent, so the processor overlaps them (the forcing's ``cos``
-of one call with the arithmetic of the next); the stages of a step cannot overlap,
-each waiting for the ones before.  So a second floor is printed beside it, from a
-loop of calls that each wait for the one before; the target stays judged on the first.
+that floor is what its step control, event location and bookkeeping add.  The ratio
+is taken in rounds (``--floor-rounds``): one ``fast`` run, then at once a loop of as
+many calls as that run made; its figure is the median of the rounds' ratios, so this
+machine's drift over the seconds between the timed runs and the loops cancels.  The
+calls of that loop are independent, so the processor overlaps them (the forcing's
+``cos`` of one call with the arithmetic of the next); the stages of a step cannot
+overlap, each waiting for the ones before.  So a second floor is printed beside it,
+from a loop of calls that each wait for the one before (in the same rounds); the
+target stays judged on the first.
 
 Run from the repository root::
 
@@ -458,27 +462,55 @@ def _chained_rhs_calls(y0, p, ip, period, calls):  # pragma: no cover - compiled
     return last
 
 
-def rhs_cost(
-    system: System, state: np.ndarray, repeats: int, chained: bool = False
-) -> dict[str, float]:
-    """Cost of one compiled right-hand-side call (s): median and range over ``repeats``
-    loops of 200,000 calls, at the case's state on its attractor; ``chained``: each
-    call waits for the one before (:func:`_chained_rhs_calls`)."""
+def _floor_args(system: System, state: np.ndarray) -> tuple[np.ndarray, tuple, tuple]:
+    """The floor loops' arguments: the state on the attractor and the parameter tuples."""
     p = tuple(float(v) for v in system.p)
     ip = tuple(int(v) for v in system.ip)
-    y = np.ascontiguousarray(state, dtype=float)
-    calls = 200_000
-    loop = _chained_rhs_calls if chained else _rhs_calls
-    loop(y, p, ip, system.forcing_period, 10)  # compile
-    costs = []
-    for _ in range(max(5, repeats)):
+    return np.ascontiguousarray(state, dtype=float), p, ip
+
+
+def _spread(values: list[float]) -> dict[str, float]:
+    return {"median": statistics.median(values), "min": min(values), "max": max(values)}
+
+
+def floor_rounds(
+    case: Case, system: System, state: np.ndarray, t_eval: np.ndarray, rtol: float, rounds: int
+) -> dict[str, Any]:
+    """``fast``'s distance to its floor, in ``rounds`` rounds of one ``fast`` run followed
+    at once by a loop of as many right-hand-side calls as it made, and by a loop of as
+    many chained calls (:func:`_chained_rhs_calls`): each round's ratio is taken within
+    a millisecond or two, so the machine's drift between the two measurements cancels.
+    Costs in s per call; ratios: the run's wall time over its calls times the cost."""
+    y, p, ip = _floor_args(system, state)
+    period = system.forcing_period
+    _rhs_calls(y, p, ip, period, 10)  # compile
+    _chained_rhs_calls(y, p, ip, period, 10)
+    run_once("fast", case, system, t_eval, rtol)  # warm
+    cost, chained, ratio, chained_ratio = [], [], [], []
+    for _ in range(rounds):
+        run = run_once("fast", case, system, t_eval, rtol)
+        calls = run.rhs_evaluations
         t0 = time.perf_counter()
-        loop(y, p, ip, system.forcing_period, calls)
-        costs.append((time.perf_counter() - t0) / calls)
-    return {"median_s": statistics.median(costs), "min_s": min(costs), "max_s": max(costs)}
+        _rhs_calls(y, p, ip, period, calls)
+        t1 = time.perf_counter()
+        _chained_rhs_calls(y, p, ip, period, calls)
+        t2 = time.perf_counter()
+        cost.append((t1 - t0) / calls)
+        chained.append((t2 - t1) / calls)
+        ratio.append(run.wall_s / (t1 - t0))
+        chained_ratio.append(run.wall_s / (t2 - t1))
+    return {
+        "rounds": rounds,
+        "rhs_call_s": _spread(cost),
+        "rhs_chained_call_s": _spread(chained),
+        "fast_over_floor": _spread(ratio),
+        "fast_over_chained_floor": _spread(chained_ratio),
+    }
 
 
-def bench_case(case: Case, periods: int, repeats: int, target: float) -> dict[str, Any]:
+def bench_case(
+    case: Case, periods: int, repeats: int, target: float, rounds: int
+) -> dict[str, Any]:
     start = time.perf_counter()
     state = settle(case)
     system = case.system(state)
@@ -523,19 +555,17 @@ def bench_case(case: Case, periods: int, repeats: int, target: float) -> dict[st
         )
     ints = out["integrators"]
     fast = ints["fast"]["wall_median_s"]
-    # the floor of `fast`: its right-hand-side calls per period at the cost of one call
-    cost = rhs_cost(system, state, repeats)
-    floor = ints["fast"]["rhs_evaluations_per_period"] * cost["median_s"]
-    out["rhs_call_s"] = cost
-    out["fast_floor_per_period_s"] = floor
-    out["fast_over_floor"] = ints["fast"]["wall_per_period_s"] / floor
+    # the floor of `fast`: its right-hand-side calls per period at the cost of one call,
+    # and its distance to it, in rounds that each take both (floor_rounds)
+    fl = floor_rounds(case, system, state, t_eval, ints["fast"]["rtol"], rounds)
+    out["floor_rounds"] = fl["rounds"]
+    out["rhs_call_s"] = fl["rhs_call_s"]
+    out["rhs_chained_call_s"] = fl["rhs_chained_call_s"]
+    calls = ints["fast"]["rhs_evaluations_per_period"]
+    out["fast_floor_per_period_s"] = calls * fl["rhs_call_s"]["median"]
+    out["fast_over_floor"] = fl["fast_over_floor"]
     out["target_fast_over_floor"] = 2.0
-    # the same floor with calls that wait for each other, as the stages of a step do
-    chained = rhs_cost(system, state, repeats, chained=True)
-    out["rhs_chained_call_s"] = chained
-    out["fast_over_chained_floor"] = ints["fast"]["wall_per_period_s"] / (
-        ints["fast"]["rhs_evaluations_per_period"] * chained["median_s"]
-    )
+    out["fast_over_chained_floor"] = fl["fast_over_chained_floor"]
     out["speedup_fast_vs_scipy_loop"] = ints["scipy_loop"]["wall_median_s"] / fast
     out["speedup_fast_vs_accurate"] = ints["accurate"]["wall_median_s"] / fast
     out["target_fast_vs_scipy_loop"] = 100.0
@@ -586,27 +616,31 @@ def markdown(report: dict[str, Any]) -> str:
             f"{case['speedup_fast_vs_accurate']:.3g}x | {met} |"
         )
     lines.append("")
+    rounds = report["cases"][0]["floor_rounds"] if report["cases"] else 0
     lines += [
         "Distance of `fast` to its floor: its right-hand-side calls per period times the cost "
-        "of one compiled call (median of loops of 200,000 calls over one forcing period, "
-        "min-max in brackets).  The target is judged on that floor.  Within a Runge-Kutta "
+        "of one compiled call, in a loop of calls spread over one forcing period.  Taken in "
+        f"{rounds} rounds, each one `fast` run and at once a loop of as many calls as it made: "
+        "the figures are the medians over the rounds (min-max in brackets), the ratio that of "
+        "the rounds' own ratios.  The target is judged on that floor.  Within a Runge-Kutta "
         "step each stage's state depends on the stages before it, so the calls cannot "
         "overlap as they do in that loop; the last two columns measure a call in a loop "
-        "where each call waits for the one before, and `fast`'s distance to that floor.",
+        "where each call waits for the one before (in the same rounds), and `fast`'s "
+        "distance to that floor.",
         "",
         "| case | rhs call | floor / period | `fast` / period | `fast` / floor | target (<= 2x) "
         "| chained rhs call | `fast` / chained floor |",
         "|---|---:|---:|---:|---:|---|---:|---:|",
     ]
     for case in report["cases"]:
-        c = case["rhs_call_s"]
-        ratio = case["fast_over_floor"]
+        ratio = case["fast_over_floor"]["median"]
         lines.append(
-            f"| {case['name']} | {c['median_s'] * 1e9:.1f} ns ({c['min_s'] * 1e9:.1f}-"
-            f"{c['max_s'] * 1e9:.1f}) | {_fmt_time(case['fast_floor_per_period_s'])} | "
-            f"{_fmt_time(case['integrators']['fast']['wall_per_period_s'])} | {ratio:.2g}x | "
+            f"| {case['name']} | {_ns(case['rhs_call_s'])} | "
+            f"{_fmt_time(case['fast_floor_per_period_s'])} | "
+            f"{_fmt_time(case['integrators']['fast']['wall_per_period_s'])} | "
+            f"{_ratio(case['fast_over_floor'])} | "
             f"{'met' if ratio <= case['target_fast_over_floor'] else 'NOT met'} | "
-            + _chained_cells(case)
+            f"{_ns(case['rhs_chained_call_s'])} | {_ratio(case['fast_over_chained_floor'])} |"
         )
     lines.append("")
     for case in report["cases"]:
@@ -615,13 +649,14 @@ def markdown(report: dict[str, Any]) -> str:
     return "\n".join(lines)
 
 
-def _chained_cells(case: dict[str, Any]) -> str:
-    """The chained-call columns of a case."""
-    c = case["rhs_chained_call_s"]
-    return (
-        f"{c['median_s'] * 1e9:.1f} ns ({c['min_s'] * 1e9:.1f}-{c['max_s'] * 1e9:.1f}) | "
-        f"{case['fast_over_chained_floor']:.2g}x |"
-    )
+def _ns(c: dict[str, float]) -> str:
+    """A call's cost: median (min-max), ns."""
+    return f"{c['median'] * 1e9:.1f} ns ({c['min'] * 1e9:.1f}-{c['max'] * 1e9:.1f})"
+
+
+def _ratio(r: dict[str, float]) -> str:
+    """A ratio over the rounds: median (min-max)."""
+    return f"{r['median']:.3g}x ({r['min']:.3g}-{r['max']:.3g})"
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -632,15 +667,18 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--repeats", type=int, default=5, help="minimum timed runs per integrator")
     ap.add_argument("--target", type=float, default=1e-8, help="error every integrator must reach")
     ap.add_argument(
+        "--floor-rounds", type=int, default=31, help="rounds of the distance to the floor"
+    )
+    ap.add_argument(
         "--cases", nargs="+", choices=[c.name for c in CASES], default=[c.name for c in CASES]
     )
     args = ap.parse_args(argv)
-    if args.periods < 1 or args.repeats < 1:
-        ap.error("--periods and --repeats must be >= 1")
+    if args.periods < 1 or args.repeats < 1 or args.floor_rounds < 1:
+        ap.error("--periods, --repeats and --floor-rounds must be >= 1")
 
     start = time.perf_counter()
     cases = [
-        bench_case(c, args.periods, args.repeats, args.target)
+        bench_case(c, args.periods, args.repeats, args.target, args.floor_rounds)
         for c in CASES
         if c.name in args.cases
     ]
@@ -648,6 +686,7 @@ def main(argv: list[str] | None = None) -> int:
         "meta": stamp(
             periods=args.periods,
             repeats=args.repeats,
+            floor_rounds=args.floor_rounds,
             target_error=args.target,
             reference=f"simulate(engine='accurate', rtol={REFERENCE_RTOL:g})",
             rtol_scan=list(RTOL_SCAN),
