@@ -508,6 +508,27 @@ def floor_rounds(
     }
 
 
+def call_cost(system: System, rtol: float, repeats: int) -> dict[str, float]:
+    """Wall time of a ``fast`` ``simulate`` call over 1e-6 of a forcing period (one step):
+    what a call costs besides its steps (the checks, the output and event arrays, the
+    call into the compiled engine, the result), s; median and range of ``repeats``
+    loops of 1000 calls."""
+    t_end = 1e-6 * system.forcing_period
+    t_eval = np.array([0.0, t_end])
+
+    def call() -> None:
+        simulate(system, t_end, t_eval=t_eval, engine="fast", rtol=rtol, max_events=MAX_EVENTS)
+
+    call()
+    costs = []
+    for _ in range(max(5, repeats)):
+        t0 = time.perf_counter()
+        for _ in range(1000):
+            call()
+        costs.append((time.perf_counter() - t0) / 1000)
+    return _spread(costs)
+
+
 def bench_case(
     case: Case, periods: int, repeats: int, target: float, rounds: int
 ) -> dict[str, Any]:
@@ -566,6 +587,7 @@ def bench_case(
     out["fast_over_floor"] = fl["fast_over_floor"]
     out["target_fast_over_floor"] = 2.0
     out["fast_over_chained_floor"] = fl["fast_over_chained_floor"]
+    out["fast_call_s"] = call_cost(system, ints["fast"]["rtol"], repeats)
     out["speedup_fast_vs_scipy_loop"] = ints["scipy_loop"]["wall_median_s"] / fast
     out["speedup_fast_vs_accurate"] = ints["accurate"]["wall_median_s"] / fast
     out["target_fast_vs_scipy_loop"] = 100.0
@@ -641,6 +663,16 @@ def markdown(report: dict[str, Any]) -> str:
             f"{_ratio(case['fast_over_floor'])} | "
             f"{'met' if ratio <= case['target_fast_over_floor'] else 'NOT met'} | "
             f"{_ns(case['rhs_chained_call_s'])} | {_ratio(case['fast_over_chained_floor'])} |"
+        )
+    lines.append("")
+    for case in report["cases"]:
+        c = case["fast_call_s"]
+        run = case["integrators"]["fast"]["wall_median_s"]
+        lines.append(
+            f"A `fast` `simulate` call of one step (1e-6 of a period) on the {case['name']} "
+            f"takes {c['median'] * 1e6:.3g} µs ({c['min'] * 1e6:.3g}-{c['max'] * 1e6:.3g}): "
+            f"what each run above pays besides its steps, {100 * c['median'] / run:.2g} % of "
+            "its time."
         )
     lines.append("")
     for case in report["cases"]:
