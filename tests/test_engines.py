@@ -357,3 +357,15 @@ def test_a_reused_event_log_leaves_every_result_its_own_events():
     for name in kept:
         np.testing.assert_array_equal(getattr(second.events, name), getattr(fresh.events, name))
     assert first.events.t[0] != second.events.t[0]
+
+
+def test_simulate_keeps_at_most_four_event_logs_the_latest_runs_used():
+    import importlib
+
+    sim_module = importlib.import_module("rubcosim.reference.simulate")
+    rotor, _, _ = whirl_rotor(0.7)
+    system = build_system({"rotor": rotor})
+    sim_module._SPARE_LOGS.clear()
+    for capacity in (10, 20, 30, 40, 50, 20):
+        simulate(system, 1e-4, engine="fast", max_events=capacity)
+    assert list(sim_module._SPARE_LOGS) == [(30, 4), (40, 4), (50, 4), (20, 4)]

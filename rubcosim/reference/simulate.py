@@ -102,10 +102,10 @@ def _take_event_log(max_events: int, n_state: int) -> tuple[np.ndarray, ...]:
 
 
 def _return_event_log(log: tuple[np.ndarray, ...]) -> None:
-    key = (log[0].shape[0], log[4].shape[1])
-    while len(_SPARE_LOGS) >= _MAX_SPARE_LOGS and key not in _SPARE_LOGS:
-        _SPARE_LOGS.pop(next(iter(_SPARE_LOGS), key), None)  # the longest kept
-    _SPARE_LOGS[key] = log
+    kept = list(_SPARE_LOGS)  # a copy (one C call): another thread may change the dict
+    for old in kept[: max(0, len(kept) - _MAX_SPARE_LOGS + 1)]:  # the longest kept
+        _SPARE_LOGS.pop(old, None)
+    _SPARE_LOGS[(log[0].shape[0], log[4].shape[1])] = log
 
 
 def _warm_up(
