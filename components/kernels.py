@@ -27,8 +27,13 @@ def planar_newton(y: np.ndarray, i: int, fx: float, fy: float, m: float, dy: np.
     """
     dy[i] = y[i + 2]
     dy[i + 1] = y[i + 3]
-    dy[i + 2] = fx / m
-    dy[i + 3] = fy / m
+    # Times the inverse, not divided: the acceleration is on the chain from one
+    # Runge-Kutta stage to the next, where a division waits ~13 cycles and a product 4;
+    # 1 / m does not depend on the state, so a compiled step loop computes it once.
+    # (It rounds differently from fx / m, within an ulp.)
+    inv_m = 1.0 / m
+    dy[i + 2] = fx * inv_m
+    dy[i + 3] = fy * inv_m
 
 
 @njit
