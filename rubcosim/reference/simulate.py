@@ -89,7 +89,7 @@ _WARM: set[tuple[str, bool]] = set()
 # Event logs kept between runs, one per (capacity, states), a few capacities at most.
 # A log holds max_events rows (6.4 MB for the default and a rotor); made afresh at
 # every run, it is mapped and unmapped by the allocator each time, and each page the
-# run writes faults again: 25 us of a rotor run's 40 us of fixed cost, measured.
+# run writes faults again: 27 us of a rotor run's 40 us of fixed cost, measured.
 # A result copies its events out, so the log is free again when simulate returns.
 _SPARE_LOGS: dict[tuple[int, int], tuple[np.ndarray, ...]] = {}
 _MAX_SPARE_LOGS = 4
@@ -181,9 +181,9 @@ def simulate(
     warmup = _warm_up(system, engine, t_start, rtol, atol_rel, max_step)
     n = system.n_state
     capacity = history_capacity
+    evlog = _take_event_log(max_events, n)  # a retry below overwrites it from the start
     while True:
         rec = np.full((t_eval.shape[0], len(system.output_names)), np.nan)
-        evlog = _take_event_log(max_events, n)
         # No controller, no history: the engines compile a delay-free variant.
         hist = new_history(capacity, t_start, system.y0) if system.has_delay else None
         queue, qmeta = new_queue(capacity if system.has_delay else 1)
