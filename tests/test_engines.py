@@ -1,5 +1,6 @@
 """Engines: fast vs accurate on every scenario, published impact-oscillator orbits, delays."""
 
+import importlib
 import math
 from pathlib import Path
 
@@ -369,3 +370,43 @@ def test_simulate_keeps_at_most_four_event_logs_the_latest_runs_used():
     for capacity in (10, 20, 30, 40, 50, 20):
         simulate(system, 1e-4, engine="fast", max_events=capacity)
     assert list(sim_module._SPARE_LOGS) == [(30, 4), (40, 4), (50, 4), (20, 4)]
+
+
+def test_a_delay_history_that_overflows_is_grown_and_the_run_redone(monkeypatch):
+    # 16 segments hold less than one delay of steps: the first run overflows, simulate
+    # grows the history eightfold and runs again on the same event log until it holds;
+    # the result is that of a history large enough from the start, events included
+    # (the log written from the start again, not appended to)
+    scenario = load_scenario(
+        Path(__file__).parents[1] / "scenarios" / "jeffcott_delayed_feedback.toml",
+        ["sim.t_end=0.25", "controller.t_on=0.05"],
+    )
+
+    def run(capacity):
+        return simulate(
+            scenario.system, 0.25, output_step=1e-3, engine="fast", history_capacity=capacity
+        )
+
+    run(1 << 16)  # the process's warm-up run, if not done yet, outside the record below
+    # the module, not the function that rubcosim.reference exports under its name
+    simulate_module = importlib.import_module("rubcosim.reference.simulate")
+    new_history = simulate_module.new_history
+    made = []
+
+    def recorded(capacity, t_init, y_init):
+        made.append(capacity)
+        return new_history(capacity, t_init, y_init)
+
+    monkeypatch.setattr(simulate_module, "new_history", recorded)
+    grown = run(16)
+    tries, made[:] = list(made), []
+    large = run(1 << 16)
+    assert tries[0] == 16 and len(tries) > 1 and made == [1 << 16]
+    assert all(b == 8 * a for a, b in zip(tries, tries[1:], strict=False))
+    assert grown.ok and large.ok and large.counters["impacts"] > 0
+    assert grown.counters == large.counters
+    np.testing.assert_array_equal(grown.outputs, large.outputs)
+    for field in ("t", "kind", "slot", "mode", "state"):
+        np.testing.assert_array_equal(getattr(grown.events, field), getattr(large.events, field))
+    # the control force is on, so the delayed state was read from the history
+    assert np.nanmax(np.abs(large.output("controller.ux"))) > 0.0
