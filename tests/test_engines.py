@@ -13,6 +13,8 @@ from rubcosim.runner import run_scenario
 from rubcosim.scenario import load_scenario
 
 SCENARIOS = sorted((Path(__file__).parents[1] / "scenarios").glob("*.toml"))
+# the module, not the function that rubcosim.reference exports under its name
+SIM_MODULE = importlib.import_module("rubcosim.reference.simulate")
 
 
 def relative_errors(a, b):
@@ -331,11 +333,6 @@ def test_a_reused_event_log_leaves_every_result_its_own_events():
     # simulate keeps the event log between runs (reference/simulate.py): a result must
     # hold copies, and a run on a log full of an earlier run's events must log exactly
     # what a run on a new log does
-    import importlib
-
-    # the package exports the function under the module's name: the module itself
-    sim_module = importlib.import_module("rubcosim.reference.simulate")
-
     def oscillator(x0):
         unit = make_unit(
             "oscillator",
@@ -347,12 +344,12 @@ def test_a_reused_event_log_leaves_every_result_its_own_events():
     first = simulate(oscillator(-1.0), 20.0, engine="fast", rtol=1e-9)
     kept = {k: getattr(first.events, k).copy() for k in ("t", "kind", "slot", "mode", "state")}
     assert len(first.events.t) > 3
-    log = sim_module._SPARE_LOGS[(100_000, 2)]
+    log = SIM_MODULE._SPARE_LOGS[(100_000, 2)]
     second = simulate(oscillator(-0.9), 15.0, engine="fast", rtol=1e-9)
-    assert sim_module._SPARE_LOGS[(100_000, 2)] is log  # taken and given back
+    assert SIM_MODULE._SPARE_LOGS[(100_000, 2)] is log  # taken and given back
     for name, values in kept.items():
         np.testing.assert_array_equal(getattr(first.events, name), values)
-    sim_module._SPARE_LOGS.clear()
+    SIM_MODULE._SPARE_LOGS.clear()
     fresh = simulate(oscillator(-0.9), 15.0, engine="fast", rtol=1e-9)
     assert len(second.events.t) == len(fresh.events.t) > 2
     for name in kept:
@@ -361,15 +358,12 @@ def test_a_reused_event_log_leaves_every_result_its_own_events():
 
 
 def test_simulate_keeps_at_most_four_event_logs_the_latest_runs_used():
-    import importlib
-
-    sim_module = importlib.import_module("rubcosim.reference.simulate")
     rotor, _, _ = whirl_rotor(0.7)
     system = build_system({"rotor": rotor})
-    sim_module._SPARE_LOGS.clear()
+    SIM_MODULE._SPARE_LOGS.clear()
     for capacity in (10, 20, 30, 40, 50, 20):
         simulate(system, 1e-4, engine="fast", max_events=capacity)
-    assert list(sim_module._SPARE_LOGS) == [(30, 4), (40, 4), (50, 4), (20, 4)]
+    assert list(SIM_MODULE._SPARE_LOGS) == [(30, 4), (40, 4), (50, 4), (20, 4)]
 
 
 def test_a_delay_history_that_overflows_is_grown_and_the_run_redone(monkeypatch):
@@ -388,16 +382,14 @@ def test_a_delay_history_that_overflows_is_grown_and_the_run_redone(monkeypatch)
         )
 
     run(1 << 16)  # the process's warm-up run, if not done yet, outside the record below
-    # the module, not the function that rubcosim.reference exports under its name
-    simulate_module = importlib.import_module("rubcosim.reference.simulate")
-    new_history = simulate_module.new_history
+    new_history = SIM_MODULE.new_history
     made = []
 
     def recorded(capacity, t_init, y_init):
         made.append(capacity)
         return new_history(capacity, t_init, y_init)
 
-    monkeypatch.setattr(simulate_module, "new_history", recorded)
+    monkeypatch.setattr(SIM_MODULE, "new_history", recorded)
     grown = run(16)
     tries, made[:] = list(made), []
     large = run(1 << 16)
