@@ -265,9 +265,8 @@ def test_hypot_is_within_two_ulps_of_the_exact_value_and_the_same_compiled_and_i
                 worst = max(worst, abs(ours[i] - exact) / math.ulp(exact))
     assert worst <= 2.0, worst
     assert hypot(3.0, 4.0) == 5.0 and hypot(-5e-320, 0.0) == 5e-320
-    assert hypot(0.0, -0.0) == 0.0 and hypot(-1.7e308, 1.7e308) == pytest.approx(
-        2.404e308, rel=1e-3
-    )
+    assert hypot(0.0, -0.0) == 0.0 and math.isinf(hypot(-1.7e308, 1.7e308))  # beyond range
+    assert hypot(-1e308, 1e308) == pytest.approx(math.sqrt(2.0) * 1e308, rel=1e-15)
     assert math.isinf(hypot(np.inf, np.nan)) and math.isinf(hypot(np.nan, -np.inf))
     assert math.isnan(hypot(np.nan, 1.0)) and math.isnan(hypot(1e-320, np.nan))
     assert hypot(3e300, 4e300) == pytest.approx(5e300, rel=1e-15)
