@@ -13,6 +13,10 @@ Measures three integrators of the same nonsmooth models:
   ``impact_velocity``.  It has no notion of sustained contact or sticking, so the
   cases below are chosen so that the motion keeps impacting and never settles.
 
+The cases, their scipy loops and one timed run are in ``engine_cases.py``; the floor
+below in ``engine_floor.py``; this script scans the tolerances, times the runs and
+writes the tables.
+
 Cases (both start on their attractor, a stable period-1 impacting orbit, found by a
 settling run from rest, so every period costs the same and integration errors do not
 grow):
@@ -66,29 +70,20 @@ reference runs and the rtol scans are included).
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import json
 import math
 import statistics
 import sys
 import time
-from collections.abc import Callable
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-import numba as nb
 import numpy as np
-from scipy.integrate import solve_ivp
+from engine_cases import CASES, MAX_EVENTS, Case, Run, max_error, run_once, settle
+from engine_floor import call_cost, floor_rounds, free_flight
 from stamp import stamp
 
-from rubcosim.components.oscillator import free_acceleration, impact_velocity
-from rubcosim.components.rotor import jeffcott_force
-from rubcosim.components.stator import contact_geometry, rigid_impact
-from rubcosim.reference import System, build_system, make_unit, simulate
-from rubcosim.reference.history import full_rhs
-from rubcosim.reference.system import N_DELAYED
-from rubcosim.reference.unowned import keep_alive, unowned
+from rubcosim.reference import System, simulate
 
 REPO = Path(__file__).resolve().parents[1]
 DEFAULT_OUT = REPO / "benchmarks" / "results" / "engines.json"
@@ -99,259 +94,8 @@ REFERENCE_RTOL = 1e-12
 RTOL_SCAN = tuple(10.0 ** (-e / 2.0) for e in range(12, 25))
 INTEGRATORS = ("fast", "accurate", "scipy_loop")
 LABELS = {"fast": "`fast`", "accurate": "`accurate`", "scipy_loop": "scipy `solve_ivp` loop"}
-MAX_EVENTS = 100_000
 MIN_TIMED_S = 0.3  # keep repeating quick runs until this much time has been measured
 MAX_RUNS = 200
-
-
-# ---------------------------------------------------------------------------- cases
-@dataclass(frozen=True)
-class Case:
-    """A benchmark model: its units' parameters and its plain scipy counterpart."""
-
-    name: str
-    description: str
-    params: dict[str, dict[str, Any]]  # role -> {"type": ..., parameter: value}
-    state_keys: tuple[str, ...]  # (role, parameter) names of the initial state, in order
-    positions: tuple[str, ...]  # outputs compared against the reference
-    settle_periods: int
-    loop: Callable[..., tuple[np.ndarray, int, int]]
-    # parameters that put the obstacle out of reach: the same model in free flight
-    out_of_reach: dict[str, dict[str, float]]
-
-    def system(self, state: np.ndarray | None = None) -> System:
-        """Build the system, optionally starting from ``state`` (same order as its states)."""
-        units = {}
-        for role, given in self.params.items():
-            q = {k: v for k, v in given.items() if k != "type"}
-            if state is not None and role == self.state_keys[0].split(".")[0]:
-                for key, value in zip(self.state_keys, state, strict=True):
-                    q[key.split(".")[1]] = float(value)
-            units[role] = make_unit(role, given["type"], q)
-        return build_system(units)
-
-
-def rotor_loop(
-    case: Case, y0: np.ndarray, t_eval: np.ndarray, rtol: float, atol: np.ndarray
-) -> tuple[np.ndarray, int, int]:
-    """Plain solve_ivp event loop for the Jeffcott rotor on a rigid stator.
-
-    Returns the positions (x, y) at ``t_eval``, the number of impacts and of rhs calls.
-    """
-    r = case.params["rotor"]
-    s = case.params["stator"]
-    m, c, k, e, w = r["mass"], r["damping"], r["stiffness"], r["eccentricity"], r["speed"]
-    rd = r["disc_radius"]
-    d, xs, ys, rest, mu = (
-        s["clearance"],
-        s["x_offset"],
-        s["y_offset"],
-        s["restitution"],
-        s["friction"],
-    )
-
-    def rhs(t: float, y: np.ndarray) -> np.ndarray:
-        fx, fy = jeffcott_force(t, y[0], y[1], y[2], y[3], m, c, k, e, w, 0.0)
-        return np.array([y[2], y[3], fx / m, fy / m])
-
-    def gap(t: float, y: np.ndarray) -> float:
-        dist, _, _ = contact_geometry(y[0] - xs, y[1] - ys)
-        return d - dist
-
-    gap.terminal = True  # type: ignore[attr-defined]
-    gap.direction = -1  # type: ignore[attr-defined]
-
-    def impact(ye: np.ndarray) -> np.ndarray:
-        _, nx, ny = contact_geometry(ye[0] - xs, ye[1] - ys)
-        vx, vy = rigid_impact(ye[2], ye[3], nx, ny, rest, mu, rd, w)
-        return np.array([ye[0], ye[1], vx, vy])
-
-    return _event_loop(rhs, gap, impact, y0, t_eval, rtol, atol, 2)
-
-
-def duffing_loop(
-    case: Case, y0: np.ndarray, t_eval: np.ndarray, rtol: float, atol: np.ndarray
-) -> tuple[np.ndarray, int, int]:
-    """Plain solve_ivp event loop for the impact Duffing oscillator (one-sided rigid stop).
-
-    Returns the position x at ``t_eval``, the number of impacts and of rhs calls.
-    """
-    o = case.params["oscillator"]
-    a, b, c3 = o["linear_stiffness"], o["damping"], o["cubic_stiffness"]
-    f, w, barrier, rest = (
-        o["forcing_amplitude"],
-        o["forcing_frequency"],
-        o["barrier"],
-        o["restitution"],
-    )
-
-    def rhs(t: float, y: np.ndarray) -> np.ndarray:
-        return np.array([y[1], free_acceleration(t, y[0], y[1], a, b, c3, f, w)])
-
-    def gap(t: float, y: np.ndarray) -> float:
-        return barrier - y[0]
-
-    gap.terminal = True  # type: ignore[attr-defined]
-    gap.direction = -1  # type: ignore[attr-defined]
-
-    def impact(ye: np.ndarray) -> np.ndarray:
-        return np.array([ye[0], impact_velocity(ye[1], rest)])
-
-    return _event_loop(rhs, gap, impact, y0, t_eval, rtol, atol, 1)
-
-
-def _event_loop(
-    rhs: Callable[[float, np.ndarray], np.ndarray],
-    gap: Callable[[float, np.ndarray], float],
-    impact: Callable[[np.ndarray], np.ndarray],
-    y0: np.ndarray,
-    t_eval: np.ndarray,
-    rtol: float,
-    atol: np.ndarray,
-    n_pos: int,
-) -> tuple[np.ndarray, int, int]:
-    """solve_ivp until the gap closes, apply the impact map, restart; until t_eval[-1]."""
-    t_end = float(t_eval[-1])
-    t = float(t_eval[0])
-    y = np.array(y0, dtype=float)
-    out = np.full((t_eval.shape[0], n_pos), np.nan)
-    i = 0
-    impacts = 0
-    nfev = 0
-    while True:
-        sol = solve_ivp(
-            rhs,
-            (t, t_end),
-            y,
-            method="DOP853",
-            t_eval=t_eval[i:],
-            events=gap,
-            rtol=rtol,
-            atol=atol,
-        )
-        if sol.status < 0:
-            raise RuntimeError(f"solve_ivp failed at t = {t:.9g}: {sol.message}")
-        nfev += sol.nfev
-        n = len(sol.t)  # a list, not an array, when no grid point fell in this stretch
-        if n:
-            out[i : i + n] = sol.y[:n_pos].T
-            i += n
-        if sol.status != 1:
-            break
-        t = float(sol.t_events[0][0])
-        y = impact(sol.y_events[0][0])
-        impacts += 1
-        if impacts > MAX_EVENTS:
-            raise RuntimeError("scipy loop: too many impacts")
-    return out, impacts, nfev
-
-
-CASES = (
-    Case(
-        name="rotor",
-        description=(
-            "Jeffcott rotor (m = 10 kg, z = 0.05, wn = 316.2 rad/s, e = 5e-5 m, speed ratio 1.2) "
-            "on a rigid stator (clearance 1e-4 m) offset by 8e-5 m along x, restitution 0.8, "
-            "friction 0.05, disc radius 0.05 m; period-1 orbit with 3 impacts per period"
-        ),
-        params={
-            "rotor": dict(
-                type="jeffcott",
-                mass=10.0,
-                damping=316.227766,
-                stiffness=1e6,
-                eccentricity=5e-5,
-                speed=379.473319,
-                disc_radius=0.05,
-            ),
-            "stator": dict(
-                type="rigid",
-                clearance=1e-4,
-                restitution=0.8,
-                friction=0.05,
-                x_offset=8e-5,
-                y_offset=0.0,
-            ),
-        },
-        state_keys=("rotor.x0", "rotor.y0", "rotor.vx0", "rotor.vy0"),
-        positions=("rotor.x", "rotor.y"),
-        settle_periods=300,
-        loop=rotor_loop,
-        out_of_reach={"stator": {"clearance": 1.0, "x_offset": 0.0}},
-    ),
-    Case(
-        name="duffing",
-        description=(
-            "impact Duffing oscillator x'' + 0.1 x' + x + x^3 = cos(1.2 t), rigid one-sided "
-            "barrier at x = 0.3, restitution 0.8; period-1 orbit with 1 impact per period"
-        ),
-        params={
-            "oscillator": dict(
-                type="impact_oscillator",
-                linear_stiffness=1.0,
-                damping=0.1,
-                cubic_stiffness=1.0,
-                forcing_amplitude=1.0,
-                forcing_frequency=1.2,
-                barrier=0.3,
-                restitution=0.8,
-                stop="rigid_one_sided",
-            ),
-        },
-        state_keys=("oscillator.x0", "oscillator.v0"),
-        positions=("oscillator.x",),
-        settle_periods=200,
-        loop=duffing_loop,
-        out_of_reach={"oscillator": {"barrier": 10.0}},
-    ),
-)
-
-
-# ---------------------------------------------------------------------------- runs
-@dataclass
-class Run:
-    positions: np.ndarray  # (n_eval, n_pos)
-    impacts: int
-    rhs_evaluations: int
-    wall_s: float
-
-
-def run_once(kind: str, case: Case, system: System, t_eval: np.ndarray, rtol: float) -> Run:
-    """One run of integrator ``kind`` on the benchmark grid; wall time of the whole call."""
-    if kind == "scipy_loop":
-        atol = rtol * system.state_scale
-        t0 = time.perf_counter()
-        pos, impacts, nfev = case.loop(case, system.y0.copy(), t_eval, rtol, atol)
-        wall = time.perf_counter() - t0
-        return Run(pos, impacts, nfev, wall)
-    t0 = time.perf_counter()
-    res = simulate(
-        system, float(t_eval[-1]), t_eval=t_eval, engine=kind, rtol=rtol, max_events=MAX_EVENTS
-    )
-    wall = time.perf_counter() - t0
-    if not res.ok:
-        raise RuntimeError(f"{kind} at rtol {rtol:g} on {case.name}: {res.message}")
-    pos = np.column_stack([res.output(name) for name in case.positions])
-    return Run(pos, res.counters["impacts"], res.counters["rhs_evaluations"], wall)
-
-
-def max_error(pos: np.ndarray, ref: np.ndarray) -> float:
-    """Largest deviation, each position normalised by the max |reference| of that position."""
-    scale = np.max(np.abs(ref), axis=0)
-    err = np.max(np.abs(pos - ref), axis=0) / scale
-    return float(np.max(err)) if np.all(np.isfinite(pos)) else math.inf
-
-
-def settle(case: Case) -> np.ndarray:
-    """State on the attractor: run from rest for ``settle_periods`` and take the final state."""
-    system = case.system()
-    t_end = case.settle_periods * system.forcing_period
-    res = simulate(system, t_end, t_eval=np.array([t_end]), engine="accurate", rtol=1e-10)
-    if not res.ok or res.final_mode != 0:
-        raise RuntimeError(
-            f"{case.name}: settling run ended with {res.message}, mode {res.final_mode}"
-        )
-    return res.final_state.copy()
 
 
 def check_reference(case: Case, system: System, t_eval: np.ndarray) -> tuple[Run, dict[str, Any]]:
@@ -435,130 +179,6 @@ def time_runs(
         last = run_once(kind, case, system, t_eval, rtol)
         walls.append(last.wall_s)
     return walls, last
-
-
-@nb.njit
-def _rhs_calls(y, p, ip, period, calls):  # pragma: no cover - compiled
-    """``calls`` right-hand sides of the free motion at times spread over one period
-    (so the forcing's cos is not the same call each time); returns a checksum.  The
-    arrays are passed as the engine passes its own (views that are not reference-
-    counted, :mod:`rubcosim.reference.unowned`): what is timed is the right-hand side,
-    not numba's reference counting of the arguments."""
-    owners = (y.copy(), np.empty_like(y), np.empty(N_DELAYED))
-    y, dy, yd = unowned(owners[0]), unowned(owners[1]), unowned(owners[2])
-    acc = 0.0
-    for k in range(calls):
-        full_rhs(period * k / calls, y, 0, p, ip, None, yd, dy)
-        acc += dy[-1]
-    keep_alive(owners)
-    return acc
-
-
-@nb.njit
-def _chained_rhs_calls(y0, p, ip, period, calls):  # pragma: no cover - compiled
-    """:func:`_rhs_calls` with each call's state depending on the previous call's result
-    (``y0 + 1e-9 * f``), as a Runge-Kutta stage depends on the stages before it: the
-    processor cannot overlap one call with the next (the forcing's ``cos`` included)."""
-    owners = (y0.copy(), y0.copy(), np.empty_like(y0), np.empty(N_DELAYED))
-    y0, y, dy, yd = unowned(owners[0]), unowned(owners[1]), unowned(owners[2]), unowned(owners[3])
-    for k in range(calls):
-        full_rhs(period * k / calls, y, 0, p, ip, None, yd, dy)
-        for i in range(y.shape[0]):
-            y[i] = y0[i] + 1e-9 * dy[i]
-    last = y[-1]
-    keep_alive(owners)
-    return last
-
-
-def _floor_args(system: System, state: np.ndarray) -> tuple[np.ndarray, tuple, tuple]:
-    """The floor loops' arguments: the state on the attractor and the parameter tuples."""
-    p = tuple(float(v) for v in system.p)
-    ip = tuple(int(v) for v in system.ip)
-    return np.ascontiguousarray(state, dtype=float), p, ip
-
-
-def _spread(values: list[float]) -> dict[str, float]:
-    return {"median": statistics.median(values), "min": min(values), "max": max(values)}
-
-
-def floor_rounds(
-    case: Case, system: System, state: np.ndarray, t_eval: np.ndarray, rtol: float, rounds: int
-) -> dict[str, Any]:
-    """``fast``'s distance to its floor, in ``rounds`` rounds of one ``fast`` run followed
-    at once by a loop of as many right-hand-side calls as it made, and by a loop of as
-    many chained calls (:func:`_chained_rhs_calls`): each round's ratio is taken within
-    a millisecond or two, so the machine's drift between the two measurements cancels.
-    Costs in s per call; ratios: the run's wall time over its calls times the cost."""
-    y, p, ip = _floor_args(system, state)
-    period = system.forcing_period
-    _rhs_calls(y, p, ip, period, 10)  # compile
-    _chained_rhs_calls(y, p, ip, period, 10)
-    run_once("fast", case, system, t_eval, rtol)  # warm
-    cost, chained, ratio, chained_ratio = [], [], [], []
-    for _ in range(rounds):
-        run = run_once("fast", case, system, t_eval, rtol)
-        calls = run.rhs_evaluations
-        t0 = time.perf_counter()
-        _rhs_calls(y, p, ip, period, calls)
-        t1 = time.perf_counter()
-        _chained_rhs_calls(y, p, ip, period, calls)
-        t2 = time.perf_counter()
-        cost.append((t1 - t0) / calls)
-        chained.append((t2 - t1) / calls)
-        ratio.append(run.wall_s / (t1 - t0))
-        chained_ratio.append(run.wall_s / (t2 - t1))
-    return {
-        "rounds": rounds,
-        "rhs_call_s": _spread(cost),
-        "rhs_chained_call_s": _spread(chained),
-        "fast_over_floor": _spread(ratio),
-        "fast_over_chained_floor": _spread(chained_ratio),
-    }
-
-
-def free_flight(case: Case, periods: int, rtol: float, rounds: int) -> dict[str, Any]:
-    """``fast``'s distance to its floor on the same model with the obstacle out of reach
-    (``case.out_of_reach``), settled on its attractor, at the impacting case's rtol:
-    what the step loop costs without an event, so the impacting case's distance splits
-    into the step loop and its events."""
-    params = {
-        role: {**given, **case.out_of_reach.get(role, {})} for role, given in case.params.items()
-    }
-    free = dataclasses.replace(case, name=f"{case.name} (free flight)", params=params)
-    state = settle(free)
-    system = free.system(state)
-    t_eval = system.forcing_period * np.arange(periods + 1)
-    run = run_once("fast", free, system, t_eval, rtol)
-    if run.impacts:
-        raise RuntimeError(f"{free.name}: {run.impacts} impacts with the obstacle out of reach")
-    fl = floor_rounds(free, system, state, t_eval, rtol, rounds)
-    return {
-        "out_of_reach": case.out_of_reach,
-        "rhs_evaluations_per_period": run.rhs_evaluations / periods,
-        "rhs_call_s": fl["rhs_call_s"],
-        "fast_over_floor": fl["fast_over_floor"],
-    }
-
-
-def call_cost(system: System, rtol: float, repeats: int) -> dict[str, float]:
-    """Wall time of a ``fast`` ``simulate`` call over 1e-6 of a forcing period (one step):
-    what a call costs besides its steps (the checks, the output and event arrays, the
-    call into the compiled engine, the result), s; median and range of ``repeats``
-    loops of 1000 calls."""
-    t_end = 1e-6 * system.forcing_period
-    t_eval = np.array([0.0, t_end])
-
-    def call() -> None:
-        simulate(system, t_end, t_eval=t_eval, engine="fast", rtol=rtol, max_events=MAX_EVENTS)
-
-    call()
-    costs = []
-    for _ in range(max(5, repeats)):
-        t0 = time.perf_counter()
-        for _ in range(1000):
-            call()
-        costs.append((time.perf_counter() - t0) / 1000)
-    return _spread(costs)
 
 
 def bench_case(
