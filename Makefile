@@ -18,16 +18,17 @@ $(STAMP): pyproject.toml
 	PYTHONWARNINGS='ignore:Editable installation' $(PY) -m pip install --quiet -e '.[dev]'
 	touch $(STAMP)
 
-# Compile the numba kernels into the cache once, in two processes that split the
-# compiled forms between them (make run and make test both start with it; without it
-# the two test workers would compile the same engine at the same time).
+# Compile every bundled model's engines into the cache once, in two processes that
+# share the models out (make test starts with it: without it the two test workers would
+# compile the same model at the same time).  make run does not: the flagship compiles
+# its own model on first use, and says so.
 WARM := $(VENV)/.warm-stamp
 $(WARM): $(STAMP) $(wildcard components/*.py rubcosim/reference/*.py orchestrator/*.py rubcosim/analysis/*.py)
-	@echo "compiling the numba kernels into the cache once (rubcosim warm-up)"
+	@echo "compiling every bundled model's engines into the cache once (rubcosim warm-up)"
 	$(VENV)/bin/rubcosim warm-up
 	touch $(WARM)
 
-run: $(WARM)
+run: $(STAMP)
 	$(VENV)/bin/rubcosim run $(FLAGSHIP) --engine accurate --out $(OUT)
 	$(VENV)/bin/rubcosim check $(FLAGSHIP) --out $(OUT)-check
 

@@ -1,40 +1,60 @@
-"""Compile the numba kernels once, into the cache, before the first real run.
+"""Compile the numba kernels of every bundled model into the cache, in parallel.
 
-A fresh checkout has an empty numba cache: its first run compiles the engine,
-the unit stepper and the analysis kernels (a minute or more on two cores) for
-a simulation of milliseconds.  ``rubcosim warm-up`` (run by ``make run`` and
-``make test``) does that once: short runs of bundled scenarios that reach every
-compiled path, in parallel processes where the paths do not overlap.  Every later
-process loads the compiled code from the cache (keyed by the sources, see
-``rubcosim/__init__.py``), so a change of source compiles again, once.
+A run compiles only its own model's engine (:mod:`rubcosim.reference.specialize`), on
+first use, and says so; nothing needs compiling ahead.  ``rubcosim warm-up`` is for
+those who want every bundled model ready (and for ``make test``, whose two workers
+would otherwise compile the same model at the same time): one job per model (its
+``fast`` and ``accurate`` engines), one for the analyses' kernels and one for the
+co-simulation's units and master, shared out over the worker processes.  Every later
+process loads the compiled code from the cache; a change of source compiles again,
+once.
 """
 
 from __future__ import annotations
 
 import time
-from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor
+from functools import partial
 
 
-def _engines() -> str:
-    """The monolithic engine (fast and accurate) and, built on it, the stroboscopic map
-    kernels of the analyses and the engine with its tangent (Lyapunov, Floquet): one
-    process, because each of those compiles on the plain engine's kernels."""
+def _model(scenario: str) -> str:
+    """The ``fast`` and ``accurate`` engines of the scenario's model."""
+    from . import api
+    from .reference.specialize import model_label
+
+    sc = api.load(scenario)
+    t_end = sc.sim["t_start"] + 1e-3 * sc.system.forcing_period
+    for engine in ("fast", "accurate"):
+        api.simulate(sc, engine, set={"sim.t_end": t_end})
+    return f"the engines for {model_label(sc.system)}"
+
+
+def _analyses() -> str:
+    """The stroboscopic maps and the variational equations (sweep, basins, Lyapunov),
+    on the impact Duffing oscillator of the seed paper."""
     from . import api
 
-    api.simulate("jeffcott_rigid_stator", "fast", set={"sim.t_end": 0.005})
-    api.simulate("impact_duffing", "fast", set={"sim.t_end": 10.0})
     api.sweep("impact_duffing", "oscillator.forcing_amplitude", [0.5, 0.6], periods=2, discard=2)
     api.basins("impact_duffing", grid=(4, 4), samples=1, region="-2:1,-2:2")
     api.lyapunov("impact_duffing", periods=2, transient=1)
-    api.simulate("jeffcott_rigid_stator", "accurate", set={"sim.t_end": 0.002})
-    _controller_kernels()
-    return "engines, analysis kernels, the variational equations, the controller's kernels"
+    return "the analyses' kernels (impact Duffing oscillator)"
+
+
+def _other_analyses() -> str:
+    """The analyses' kernels of the other families: the rotor's stroboscopic map and
+    variational equations (a sweep, the Lyapunov spectrum of chaos control) and the
+    two-DOF oscillator's map (basins on a slice)."""
+    from . import api
+
+    api.sweep("jeffcott_rigid_stator", "rotor.speed", [380.0, 390.0], periods=2, discard=1)
+    api.lyapunov("jeffcott_rigid_stator", periods=1, transient=0)
+    two = "two_dof_impact_oscillator"
+    api.basins(two, (2, 2), 1, (-1, 0.5, -1, 1), slice=("oscillator.x2", "oscillator.v2"))
+    return "the analyses' kernels (rotor, two-DOF oscillator)"
 
 
 def _controller_kernels() -> None:
-    """The delayed-feedback controller's kernels on a buffer (flat_controller): in this
-    job, the shorter of the two, where their compilation fits in the other's time."""
+    """The delayed-feedback controller's kernels on a buffer (flat_controller)."""
     import numpy as np
 
     from .components.delay_history import ROW
@@ -55,35 +75,45 @@ def _controller_kernels() -> None:
 
 
 def _units() -> str:
-    """The co-simulation's units (the compiled unit stepper for ODE and hybrid units) and
-    the master's compiled loop, then the engine with a delay (``fast``, then the
-    ``accurate`` engine's compiled event handling on it): last, so that what it
-    shares with the plain engine (event maps, outputs) is in the cache by then instead
-    of being compiled in both processes at once."""
+    """The co-simulation's units (the compiled unit stepper for ODE and hybrid units),
+    the master's compiled loop and the controller's kernels."""
     from . import api
 
     api.cosimulate("jeffcott_rigid_stator", "direct", set={"sim.t_end": 0.002})
     api.cosimulate("jeffcott_elastic_casing", "direct", set={"sim.t_end": 0.002})
     api.cosimulate("impact_duffing", "direct", set={"sim.t_end": 5.0})
-    api.simulate("jeffcott_delayed_feedback", "fast", set={"sim.t_end": 0.005})
-    api.simulate("jeffcott_delayed_feedback", "accurate", set={"sim.t_end": 0.002})
-    return "co-simulation units and master, the engine with a delay (fast and accurate)"
+    _controller_kernels()
+    return "the co-simulation's units and master"
 
 
-JOBS: tuple[Callable[[], str], ...] = (_engines, _units)
+def _distinct_models() -> list[str]:
+    """One bundled scenario per model (scenarios of one model share its engines)."""
+    from . import api
+    from .reference.specialize import model_key
+
+    seen: dict[tuple[int, ...], str] = {}
+    for name in api.scenarios():
+        seen.setdefault(model_key(api.load(name).system.ip), name)
+    return sorted(seen.values())
+
+
+def jobs() -> list:
+    """The warm-up's jobs, longest first (so that the pool ends them together)."""
+    models = [partial(_model, name) for name in _distinct_models()]
+    return [_units, _analyses, _other_analyses, *models]
 
 
 def warm_up(workers: int = 2) -> list[tuple[str, float]]:
     """Run the warm-up jobs (in ``workers`` processes; 1: in this one); returns what each
     compiled and its wall time (s)."""
+    todo = jobs()
     if workers <= 1:
-        return [_timed_job(i) for i in range(len(JOBS))]
+        return [_timed(job) for job in todo]
     with ProcessPoolExecutor(max_workers=workers) as pool:
-        futures = [pool.submit(_timed_job, i) for i in range(len(JOBS))]
-        return [f.result() for f in futures]
+        return list(pool.map(_timed, todo))
 
 
-def _timed_job(index: int) -> tuple[str, float]:
+def _timed(job) -> tuple[str, float]:
     start = time.perf_counter()
-    what = JOBS[index]()
+    what = job()
     return what, time.perf_counter() - start

@@ -43,11 +43,7 @@ DEPTHS = np.logspace(-7, -3, 9)  # penetration depths for the fit, in length sca
 def obstacle_gap(system: System, states: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Signed distance to the nearest rigid obstacle of ``system`` and its rate, for
     each state row (free mode)."""
-    Y = np.ascontiguousarray(np.atleast_2d(states), dtype=float)
-    gap, rate = np.empty(Y.shape[0]), np.empty(Y.shape[0])
-    p, ip = tuple(float(v) for v in system.p), tuple(int(v) for v in system.ip)
-    obstacle_gaps(Y, S.MODE_FREE, p, ip, gap, rate)
-    return gap, rate
+    return obstacle_gaps(system, states, S.MODE_FREE)
 
 
 def free_params(system: System) -> dict[str, Any]:

@@ -28,11 +28,11 @@ import numpy as np
 
 from rubcosim.reference.assemble import System
 from rubcosim.reference.core import STATUS_MESSAGES, STATUS_OK
+from rubcosim.reference.specialize import specialized
 from rubcosim.reference.tangent import FD_REL, T_LOGDET, T_TRACE
 
 from .errors import AnalysisError, MapError
 from .maps import DEFAULT_MAX_EVENTS
-from .tangent_kernels import lyapunov_run, tangent_periods
 
 LYAPUNOV_RTOL = 1e-10
 DEFAULT_PERIODS = 1000
@@ -81,6 +81,11 @@ def _check_system(system: System) -> None:
         )
 
 
+def _kernels(system: System) -> Any:
+    """The compiled variational loops (:mod:`.tangent_kernels`) of ``system``'s model."""
+    return specialized("rubcosim.analysis.tangent_kernels", system.ip)
+
+
 def _args(system: System, rtol: float, t_scale: float) -> tuple[Any, ...]:
     """``p``, ``ip``, the engine's tolerances, difference steps: as the stroboscopic map."""
     if not (isinstance(rtol, float | int) and 1e-14 <= rtol < 1.0):
@@ -109,7 +114,7 @@ def monodromy(
     yy = np.array(y, dtype=float)
     Phi = np.eye(yy.size)
     stats = np.zeros(3)
-    st, done, m_end, impacts = tangent_periods(
+    st, done, m_end, impacts = _kernels(system).tangent_periods(
         yy, int(mode), 0.0, T, periods, p, ip, tol, max_events, Phi, fd, t_fd, stats
     )
     if st != STATUS_OK:
@@ -154,7 +159,7 @@ def lyapunov_spectrum(
     Q = np.ascontiguousarray(np.eye(n)[:, :count])
     logs = np.zeros((periods, count))
     stats = np.zeros(3)
-    st, done, m_end, impacts = lyapunov_run(
+    st, done, m_end, impacts = _kernels(system).lyapunov_run(
         y, m, 0.0, float(T), transient, periods, p, ip, tol, max_events, Q, fd, t_fd, logs, stats
     )
     if st != STATUS_OK:

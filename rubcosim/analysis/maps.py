@@ -15,25 +15,42 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from types import ModuleType
 
 import numpy as np
 
 from rubcosim.reference.assemble import System
 from rubcosim.reference.core import STATUS_MESSAGES, STATUS_OK
+from rubcosim.reference.specialize import specialized
 
 from .errors import MapError
-from .strobe_kernels import map_many, obstacle_gaps, strobe_run
 
 DEFAULT_RTOL = 1e-9
+STROBE_KERNELS = "rubcosim.analysis.strobe_kernels"
+
+
+def kernels(system: System) -> ModuleType:
+    """The compiled stroboscopic loops (:mod:`.strobe_kernels`) of ``system``'s model."""
+    return specialized(STROBE_KERNELS, system.ip)
+
+
+def obstacle_gaps(system: System, states: np.ndarray, mode: int) -> tuple[np.ndarray, np.ndarray]:
+    """Signed distance to the nearest rigid obstacle of ``system`` and its rate, for
+    each state row (in ``mode``)."""
+    Y = np.ascontiguousarray(np.atleast_2d(np.asarray(states, dtype=float)))
+    gap, rate = np.empty(Y.shape[0]), np.empty(Y.shape[0])
+    p, ip = tuple(float(v) for v in system.p), tuple(int(v) for v in system.ip)
+    kernels(system).obstacle_gaps(Y, mode, p, ip, gap, rate)
+    return gap, rate
+
+
 DEFAULT_MAX_EVENTS = 20_000  # per forcing period: a chattering sequence stays well below
 
 
 def admissible(smap: StroboscopicMap, states: np.ndarray) -> np.ndarray:
     """Whether each state (row, in the system's initial mode) is outside every rigid
     obstacle: a state beyond a rigid stop or stator is not a state of the system."""
-    Y = np.ascontiguousarray(np.atleast_2d(np.asarray(states, dtype=float)))
-    gap, rate = np.empty(Y.shape[0]), np.empty(Y.shape[0])
-    obstacle_gaps(Y, smap.system.mode0, smap._p, smap._ip, gap, rate)
+    gap, _ = obstacle_gaps(smap.system, states, smap.system.mode0)
     return gap >= 0.0
 
 
@@ -111,6 +128,12 @@ class StroboscopicMap:
         self._ip = tuple(int(v) for v in system.ip)
 
     @property
+    def _kernels(self) -> ModuleType:
+        """This model's compiled loops (a property: a map is pickled for worker processes,
+        a module cannot be)."""
+        return kernels(self.system)
+
+    @property
     def n_state(self) -> int:
         return self.system.n_state
 
@@ -140,7 +163,7 @@ class StroboscopicMap:
         imp_t = np.full(cap, np.nan)
         imp_y = np.full((cap, self.n_state), np.nan)
         imp_n = np.zeros(1, dtype=np.int64)
-        status, done, m_end = strobe_run(
+        status, done, m_end = self._kernels.strobe_run(
             y,
             m,
             float(t0),
@@ -198,7 +221,7 @@ class StroboscopicMap:
         m1 = np.empty(N, dtype=np.int64)
         impacts = np.empty(N, dtype=np.int64)
         status = np.empty(N, dtype=np.int64)
-        map_many(
+        self._kernels.map_many(
             Y0,
             m0,
             0.0,

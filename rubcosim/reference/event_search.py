@@ -81,7 +81,7 @@ def locate(slot, sgn, ta, fa, tb, fb, seg, ctx, hist, scratch):
     for _ in range(MAX_TRIALS):
         if advance(s):
             break
-        s[F_CUR] = sgn * event_value(slot, s[X_CUR], seg, ctx, hist, scratch)
+        s[F_CUR] = sgn * value_at(slot, s[X_CUR], seg, ctx, hist, scratch)
     return crossed_end(s)
 
 
@@ -96,7 +96,7 @@ def locate_with_rate(slot, j, sgn, ta, fa, da, tb, fb, db, seg, ctx, hist, scrat
     for _ in range(MAX_TRIALS):
         if advance_with_rates(s):
             break
-        s[R_F] = sgn * event_value(slot, s[R_X], seg, ctx, hist, scratch)
+        s[R_F] = sgn * value_at(slot, s[R_X], seg, ctx, hist, scratch)
         s[R_D] = sgn * scratch[2][j]  # the same evaluation filled every slot
     return s[R_B]
 
@@ -152,7 +152,7 @@ def first_return(k, j, sgn, t_a, t_b, rate_a, fb, rate_b, seg, ctx, hist, scratc
             tm = t_a + h * QUARTERS[i]
             if tm <= tp:
                 continue
-            rm = sgn * event_value(j, tm, seg, ctx, hist, scratch)
+            rm = sgn * value_at(j, tm, seg, ctx, hist, scratch)
             gm = sgn * scratch[2][k]  # the same evaluation filled every slot: g_k at tm too
         if top < 0.0:
             if rm > 0.0:
@@ -278,7 +278,9 @@ def step_end_events(t, y, mode, p, ip, hist, yd, g_b, dirs_b, rates_b):
     events(t, y, yd, mode, p, ip, g_b, dirs_b, rates_b)
 
 
-@nb.njit(cache=True, inline="always")
+# a call, not inlined: it runs once per restart (after an event), and each inlined copy of
+# the system's event functions costs seconds of a cold compile
+@njit(borrows=True)
 def start_sides(t, y, mode, p, ip, hist, g, dirs, rates, side, yd, forced_slot, forced_side):
     """Event functions at the start of a step and the side each one is on."""
     delayed_state(t, p, ip, hist, yd)

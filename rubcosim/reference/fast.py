@@ -50,6 +50,7 @@ from .event_search import (
 )
 from .history import (
     full_rhs,
+    full_rhs_call,
     next_breakpoint,
     uses_history,
 )
@@ -84,7 +85,7 @@ def initial_step(t0, y0, f0, t_bound, max_step, rtol, atol, mode, p, ip, hist, y
     h0 = min(h0, interval)
     for i in range(n):
         y1[i] = y0[i] + h0 * f0[i]
-    full_rhs(t0 + h0, y1, mode, p, ip, hist, yd, f1)
+    full_rhs_call(t0 + h0, y1, mode, p, ip, hist, yd, f1)
     cnt[C_RHS] += 1
     d2 = 0.0
     for i in range(n):
@@ -98,15 +99,17 @@ def initial_step(t0, y0, f0, t_bound, max_step, rtol, atol, mode, p, ip, hist, y
     return min(100.0 * h0, h1, interval, max_step)
 
 
-# inlined into integrate's loop (one more copy of the right-hand side): 5-7 % faster
-# runs with impacts, ~4 s more of a cold compile
-@njit(borrows=True, inline="always")
+# A call from integrate's loop, and the right-hand side a call from here: it runs on the
+# steps that record an output or may hold an event, where each inlined copy of the model's
+# right-hand side cost seconds of a cold compile (no difference in run time measured on
+# the rigid stator, in alternated runs of the two forms)
+@njit(borrows=True)
 def dense_coefficients(t_old, h, y_old, y_new, f_new, K, mode, p, ip, hist, yd, F, ytmp, cnt):
     """DOP853 dense output (scipy's F layout) for the step just taken; ``K`` a view that is
     not reference-counted (its rows are written in place)."""
     for s in range(N_STAGES + 1, N_EXT):
         stage_point(K, s, y_old, h, ytmp)
-        full_rhs(t_old + C[s] * h, ytmp, mode, p, ip, hist, yd, K[s])
+        full_rhs_call(t_old + C[s] * h, ytmp, mode, p, ip, hist, yd, K[s])
         cnt[C_RHS] += 1
     dense_from_stages(h, y_old, y_new, f_new, K, F)
 
@@ -210,9 +213,11 @@ def integrate(y0, mode, t0, t_end, p, ip, tol, out, hist, dde, y_final, tan):
         bound = t_end
         if uses_history(p, ip):  # next_breakpoint's own first test: without a delay, no call
             bound = next_breakpoint(t, t_end, p_arr, ip_arr, queue, qmeta)
-        start_sides(t, y, mode, p, ip, hist, g_a, dirs, rates, side, yd, forced_slot, forced_side)
+        start_sides(
+            t, y, mode, p_arr, ip_arr, hist, g_a, dirs, rates, side, yd, forced_slot, forced_side
+        )
         forced_slot = -1
-        full_rhs(t, y, mode, p, ip, hist, yd, f)
+        full_rhs_call(t, y, mode, p_arr, ip_arr, hist, yd, f)
         cnt[C_RHS] += 1
         cnt[C_RESTARTS] += 1
         if h_last > 0.0:
@@ -221,7 +226,21 @@ def integrate(y0, mode, t0, t_end, p, ip, tol, out, hist, dde, y_final, tan):
             h_abs = min(h_last, max_step, bound - t)
         else:
             h_abs = initial_step(
-                t, y, f, bound, max_step, rtol, atol, mode, p, ip, hist, yd, ytmp, y_new, cnt
+                t,
+                y,
+                f,
+                bound,
+                max_step,
+                rtol,
+                atol,
+                mode,
+                p_arr,
+                ip_arr,
+                hist,
+                yd,
+                ytmp,
+                y_new,
+                cnt,
             )
         while t < bound and cnt[C_STATUS] == STATUS_OK:
             if h_abs > max_step:
@@ -265,7 +284,9 @@ def integrate(y0, mode, t0, t_end, p, ip, tol, out, hist, dde, y_final, tan):
                 sides_from(g_b, side)
                 t = t_new
                 continue
-            dense_coefficients(t, h, y, y_new, f_new, K, mode, p, ip, hist, yd, F, ytmp, cnt)
+            dense_coefficients(
+                t, h, y, y_new, f_new, K, mode, p_arr, ip_arr, hist, yd, F, ytmp, cnt
+            )
             t_next, mode_next, fs, fside = after_step(
                 t, t_new, y, y_new, F, mode, p_arr, ip_arr, hist, dde, ev, out, y_next, work
             )

@@ -225,6 +225,13 @@ def full_rhs(t, y, mode, p, ip, hist, yd, dy):
     rhs(t, y, yd, mode, p, ip, dy)
 
 
+@njit(borrows=True)
+def full_rhs_call(t, y, mode, p, ip, hist, yd, dy):
+    """:func:`full_rhs` as a call, not inlined: for the sites that run once per restart
+    (each inlined copy of the right-hand side costs seconds of a cold compile)."""
+    full_rhs(t, y, mode, p, ip, hist, yd, dy)
+
+
 @nb.njit(cache=True)
 def full_rhs_alloc(t, y, mode, p, ip, hist):
     dy = np.empty_like(y)

@@ -8,6 +8,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from rubcosim.compile_notice import announce
 from rubcosim.progress import watch
 from rubcosim.timegrid import output_grid
 
@@ -35,9 +36,11 @@ from .history import (
     new_queue,
     push_arrivals,
 )
+from .specialize import model_key, model_label, specialized
 from .system import KIND_NAMES
 
 ENGINES = {"fast": fast.integrate, "accurate": accurate.integrate}
+ENGINE_MODULES = {"fast": "rubcosim.reference.fast", "accurate": "rubcosim.reference.accurate"}
 # scipy refuses tolerances tighter than 100 machine epsilons.
 MIN_RTOL = 100 * np.finfo(float).eps
 
@@ -112,24 +115,25 @@ def _warm_up(
     system: System, engine: str, t_start: float, rtol: float, atol: float, max_step: float
 ) -> float:
     """Load (or compile) the engine once per process, outside the timed run."""
-    key = (engine, system.has_delay)
+    key = (engine, model_key(system.ip))
     if key in _WARM:
         return 0.0
     _WARM.add(key)
     t0 = time.perf_counter()
     tiny = 1e-6 * system.forcing_period
-    simulate(
-        system,
-        t_start + tiny,
-        t_start=t_start,
-        t_eval=np.array([t_start + tiny]),
-        engine=engine,
-        rtol=rtol,
-        atol=atol,
-        max_events=8,
-        max_step=max_step,
-        history_capacity=16,
-    )
+    with announce(f"the {engine} engine for {model_label(system)}"):
+        simulate(
+            system,
+            t_start + tiny,
+            t_start=t_start,
+            t_eval=np.array([t_start + tiny]),
+            engine=engine,
+            rtol=rtol,
+            atol=atol,
+            max_events=8,
+            max_step=max_step,
+            history_capacity=16,
+        )
     return time.perf_counter() - t0
 
 
@@ -172,7 +176,7 @@ def simulate(
     t_eval = np.ascontiguousarray(t_eval, dtype=float)
     max_step = min(max_step, system.min_delay())
     atol_arr = atol_rel * system.state_scale
-    integrate = ENGINES[engine]
+    integrate = specialized(ENGINE_MODULES[engine], system.ip).integrate
     # Parameters travel as tuples: values, not reference-counted arrays, so the
     # compiled kernels pay nothing for passing them down the call chain.
     # (tolist: Python floats and ints in one C call, 0.6 us where a generator took 4.5)

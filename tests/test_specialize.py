@@ -1,0 +1,160 @@
+"""Per-model compiled modules (``rubcosim/reference/specialize.py``): what a copy holds,
+which models share one, that a second process compiles nothing, and the compile notice."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+import textwrap
+
+import numpy as np
+import pytest
+
+from rubcosim.reference import system as S
+from rubcosim.reference.specialize import MODEL_MODULES, model_key, model_label, specialized
+from rubcosim.scenario import load_scenario
+
+
+def _system(name: str, overrides: list[str] | None = None):
+    return load_scenario(name, overrides or []).system
+
+
+def _source_of(module) -> str:
+    with open(module.__file__) as f:
+        return f.read()
+
+
+def test_a_copy_reads_its_family_as_constants():
+    """Wiring, family scope (the default): the rigid stator's copy of the system reads
+    its family and its controller as constants of the model, the rest from ``ip``."""
+    system = _system("jeffcott_rigid_stator")
+    copy = specialized("rubcosim.reference.system", system.ip)
+    source = _source_of(copy)
+    assert "ip[IP_FAMILY]" not in source and "ip[IP_CONTROLLER]" not in source
+    assert "ip[IP_STATOR]" in source
+    assert copy.M_IP_FAMILY == S.FAMILY_ROTOR and copy.M_IP_CONTROLLER == S.CONTROLLER_NONE
+    assert not hasattr(copy, "M_IP_STATOR")
+
+
+def test_in_model_scope_a_copy_reads_the_models_structure_as_constants(monkeypatch):
+    """Wiring, model scope: every structural read of ``ip`` is a constant of the model,
+    and the constants are that model's; a choice stays a run-time read."""
+    monkeypatch.setenv("RUBCOSIM_COMPILE_SCOPE", "model")
+    system = _system("jeffcott_rigid_stator")
+    copy = specialized("rubcosim.reference.system", system.ip)
+    source = _source_of(copy)
+    assert "ip[IP_STATOR]" not in source and "ip[IP_FAMILY]" not in source
+    assert copy.M_IP_STATOR == S.STATOR_RIGID == system.ip[S.IP_STATOR]
+    assert copy.M_IP_STATOR_CASING_X == -1
+    assert "ip[IP_CONTROLLER_FEEDBACK]" in source
+    monkeypatch.setenv("RUBCOSIM_COMPILE_SCOPE", "everything")
+    with pytest.raises(ValueError, match="RUBCOSIM_COMPILE_SCOPE = 'everything'"):
+        specialized("rubcosim.reference.system", system.ip)
+
+
+def test_every_model_module_is_copied_with_its_imports_to_the_copies():
+    """Wiring: the copies of one model import each other, not the package's modules."""
+    system = _system("impact_duffing")
+    fast = specialized("rubcosim.reference.fast", system.ip)
+    package = fast.__name__.rsplit(".", 1)[0]
+    assert fast.full_rhs.py_func.__module__ == f"{package}.reference_history"
+    assert fast.rk_step.py_func.__globals__["full_rhs"] is fast.full_rhs
+    strobe = specialized("rubcosim.analysis.strobe_kernels", system.ip)
+    assert strobe.integrate is fast.integrate
+    with pytest.raises(ValueError, match="does not depend on the model"):
+        specialized("rubcosim.components.stator", system.ip)
+    assert len(MODEL_MODULES) == len(set(MODEL_MODULES))
+
+
+def test_which_models_share_an_engine(monkeypatch):
+    """Wiring: a parameter or a choice (the modulation shape) never gives another engine;
+    in family scope a stator type does not either, a controller does; in model scope
+    both do."""
+    rigid = _system("jeffcott_rigid_stator")
+    other_speed = _system("jeffcott_rigid_stator", ["rotor.speed=400"])
+    elastic = _system("jeffcott_elastic_stator")
+    controlled = _system("jeffcott_delayed_feedback")
+    sine = _system("jeffcott_delayed_feedback", ["controller.modulation_shape=sine"])
+    saw = _system("jeffcott_delayed_feedback", ["controller.modulation_shape=sawtooth"])
+    assert not np.array_equal(sine.ip, saw.ip)
+    oscillator, two_dof = _system("impact_duffing"), _system("two_dof_impact_oscillator")
+    for scope in ("family", "model"):
+        monkeypatch.setenv("RUBCOSIM_COMPILE_SCOPE", scope)
+        assert model_key(rigid.ip) == model_key(other_speed.ip)
+        assert model_key(sine.ip) == model_key(saw.ip)
+        assert model_key(rigid.ip) != model_key(controlled.ip)
+        assert model_key(oscillator.ip) != model_key(two_dof.ip)
+        same_stator_engine = model_key(rigid.ip) == model_key(elastic.ip)
+        assert same_stator_engine == (scope == "family")
+    monkeypatch.delenv("RUBCOSIM_COMPILE_SCOPE")
+    a = specialized("rubcosim.reference.fast", sine.ip)
+    assert a is specialized("rubcosim.reference.fast", saw.ip)
+    assert a is not specialized("rubcosim.reference.fast", rigid.ip)
+
+
+def test_model_label_names_the_units():
+    assert model_label(_system("jeffcott_rigid_stator")) == "rotor.jeffcott + stator.rigid"
+    assert model_label(_system("impact_duffing")) == "oscillator.impact_oscillator"
+
+
+_SECOND_RUN = textwrap.dedent(
+    """
+    import json, sys
+    from numba.core import event
+    compiled = []
+
+    class Count(event.Listener):
+        def on_start(self, ev):
+            compiled.append(ev.data["dispatcher"].py_func.__qualname__)
+
+        def on_end(self, ev):
+            pass
+
+    import rubcosim as rc
+    with event.install_listener("numba:compile", Count()):
+        res = rc.simulate("impact_oscillator_linear", "fast", set={"sim.t_end": 5.0})
+    print(json.dumps({"ok": res.ok, "compiled": compiled}))
+    """
+)
+
+
+def _fresh_process() -> dict:
+    env = {**os.environ, "RUBCOSIM_QUIET_COMPILE": "1"}
+    out = subprocess.run(
+        [sys.executable, "-c", _SECOND_RUN], capture_output=True, text=True, env=env, check=True
+    )
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+def test_a_second_process_of_a_scenario_compiles_nothing():
+    """Caching across processes: a fresh process that runs a scenario whose engine is in
+    numba's cache (the first one here put it there, if the cache was cold) starts no
+    numba compilation at all."""
+    first = _fresh_process()
+    second = _fresh_process()
+    assert first["ok"] and second["ok"]
+    assert second["compiled"] == []
+
+
+def test_a_compilation_is_announced_once_with_its_time(capsys):
+    """The notice: one line naming what compiles, one with its time; nothing when the
+    block compiles nothing."""
+    import numba
+
+    from rubcosim.compile_notice import announce
+
+    @numba.njit  # not cached: compiled in this process
+    def fresh(x):
+        return x + 1.0
+
+    with announce("a test kernel"):
+        fresh(1.0)
+    err = capsys.readouterr().err.splitlines()
+    assert err[0].startswith("rubcosim: compiling a test kernel (first use")
+    assert err[1].startswith("rubcosim: compiled a test kernel in ")
+    assert len(err) == 2
+    with announce("a test kernel"):
+        fresh(2.0)  # compiled already
+    assert capsys.readouterr().err == ""
