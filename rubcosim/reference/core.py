@@ -133,7 +133,7 @@ def needs_dense(t_b, hist, g_a, side, dirs, rates, g_b, t_eval, cnt):
 # inlined (with find_event) into the fast engine's loop: a call passed some twenty
 # arrays, field by field, twice per impact; inlined, the rotor runs ~15 % faster, and a
 # cold compile takes ~3 s longer (the event functions themselves stay calls)
-@njit(borrows=True)
+@njit(borrows=True, inline="always")
 def after_step(t_a, t_b, y_old, y_b, F, mode, p, ip, hist, dde, ev, out, y_out, work):
     """Process an accepted step [t_a, t_b] with dense output F; ``ev = (g_a, side,
     dirs, rates, g_b)`` holds the event functions at t_a (with their sides,
