@@ -5,9 +5,7 @@ from __future__ import annotations
 import argparse
 import gc
 import os
-import shutil
 import sys
-from typing import Any
 
 from rubcosim.components.parameters import ParameterError
 from rubcosim.components.wiring import CouplingError
@@ -15,18 +13,13 @@ from rubcosim.orchestrator.cosim_result import CosimError
 from rubcosim.orchestrator.settings import BACKENDS
 from rubcosim.reference.simulate import ENGINES
 
-from . import api, cli_control, cli_lyapunov, cli_ssp
+from . import api, cli_control, cli_lyapunov, cli_maps, cli_ssp
 from .analysis.errors import AnalysisError
-from .analysis.sweep import DIRECTIONS
-from .basinsettings import BASIN_METHODS
-from .cli_options import add_set_option
+from .cli_options import EXIT_BAD_INPUT, EXIT_RUN_FAILED, add_set_option
 from .scenario import ScenarioError
-from .writing import check_output_dir, write_directory
+from .writing import check_output_dir
 
 SCENARIO_HELP = "a bundled scenario's name (see `rubcosim scenarios`) or a scenario TOML file"
-
-EXIT_BAD_INPUT = 2
-EXIT_RUN_FAILED = 3
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -71,7 +64,7 @@ def _parser() -> argparse.ArgumentParser:
             action="store_true",
             help="write the results and report without plots (matplotlib is not loaded)",
         )
-    _analysis_parsers(sub)
+    cli_maps.add_parsers(sub, SCENARIO_HELP)
     cli_lyapunov.add_parser(sub, SCENARIO_HELP)
     cli_control.add_parser(sub, SCENARIO_HELP)
     cli_ssp.add_parser(sub, SCENARIO_HELP)
@@ -93,214 +86,6 @@ def _parser() -> argparse.ArgumentParser:
         help="build only this FMU, e.g. RubcosimJeffcottRotor (repeatable)",
     )
     return ap
-
-
-def _analysis_parsers(sub: Any) -> None:
-    def common(p: argparse.ArgumentParser) -> None:
-        p.add_argument("scenario", help=SCENARIO_HELP)
-        add_set_option(p, "a parameter or initial state")
-        p.add_argument("--out", required=True, help="output directory")
-        p.add_argument(
-            "--rtol",
-            type=float,
-            default=None,
-            help="the fast engine's relative tolerance for the maps",
-        )
-        p.add_argument(
-            "--workers",
-            type=int,
-            default=None,
-            help="local worker processes (default: the usable cores)",
-        )
-        p.add_argument(
-            "--scheduler",
-            default=None,
-            metavar="ADDRESS",
-            help="run the tasks on this Dask scheduler (e.g. tcp://host:8786)",
-        )
-        p.add_argument("--no-progress", action="store_true", help="no progress bar")
-
-    sw = sub.add_parser("sweep", help="bifurcation diagram by continuation over a parameter")
-    common(sw)
-    sw.add_argument(
-        "--param",
-        required=True,
-        metavar="UNIT.PARAM=START:STOP:COUNT",
-        help="the swept parameter and its values",
-    )
-    sw.add_argument("--periods", type=int, default=100, help="stroboscopic points kept per value")
-    sw.add_argument("--discard", type=int, default=200, help="transient periods per value")
-    sw.add_argument(
-        "--direction", choices=DIRECTIONS, default="up", help="sweep up, down, or both (hysteresis)"
-    )
-    sw.add_argument(
-        "--chains",
-        type=int,
-        default=1,
-        help="independent continuation chains per direction (parallel)",
-    )
-    sw.add_argument(
-        "--section",
-        choices=("strobe", "impact"),
-        default="strobe",
-        help="what bifurcation.png draws: the stroboscopic section (default) or the impact "
-        "section (forcing phase of every impact)",
-    )
-    sw.add_argument(
-        "--floquet",
-        action="store_true",
-        help="Floquet multipliers (stability, kind of bifurcation) of each periodic motion "
-        "of period <= 8",
-    )
-    sw.add_argument(
-        "--lyapunov",
-        action="store_true",
-        help="largest Lyapunov exponent (1/s) of each value's motion over --periods periods",
-    )
-    sw.add_argument(
-        "--grazing",
-        action="store_true",
-        help="locate each grazing between sweep values (impacts start or stop) and fit the "
-        "square-root law there",
-    )
-    sw.add_argument(
-        "--plot-state",
-        default=None,
-        metavar="NAME",
-        help="state drawn against the parameter (default: the first)",
-    )
-    bs = sub.add_parser("basins", help="basins of attraction by generalized cell mapping")
-    common(bs)
-    bs.add_argument(
-        "--grid", metavar="NXxNV", help="cells in x and x' (default: the scenario's basins.grid)"
-    )
-    bs.add_argument("--samples", type=int, help="random points per cell (basins.samples)")
-    bs.add_argument(
-        "--region", metavar="X0:X1,V0:V1", help="the section's region in (x, x') (basins.region)"
-    )
-    bs.add_argument("--seed", type=int, help="seed of the sample points (basins.seed, else 0)")
-    bs.add_argument(
-        "--method",
-        default=None,
-        help=f"{' or '.join(BASIN_METHODS)}; gcm (default): generalized cell mapping on "
-        "the one-period map; pursuit: every sample followed to a verified attractor, "
-        "saddles by Newton (for maps close to the identity, e.g. "
-        "scenarios/feng_yang_attractors.toml); slice (default with --slice): every "
-        "sample followed in the full state space, any delay-free system; default: the "
-        "scenario's basins.method",
-    )
-    bs.add_argument(
-        "--slice",
-        default=None,
-        metavar="NAME1,NAME2",
-        help="the two state components the grid spans (default: the first two); the "
-        "others keep the scenario's initial values, e.g. oscillator.x2,oscillator.v2",
-    )
-
-
-def cmd_sweep(args: argparse.Namespace) -> int:
-    from .analysis.outputs import checkpoint_dir, write_sweep
-    from .analysis.sweep import parse_param
-
-    scenario = api.load(args.scenario, args.set)
-    param = parse_param(args.param)
-    out = check_output_dir(args.out)
-    names = scenario.system.state_names
-    plot_state = 0
-    if args.plot_state is not None:
-        if args.plot_state not in names:
-            raise ScenarioError(f"--plot-state {args.plot_state!r}: not one of {', '.join(names)}")
-        plot_state = names.index(args.plot_state)
-    ckpt = checkpoint_dir(out)
-    result = api.sweep(
-        scenario,
-        param,
-        periods=args.periods,
-        discard=args.discard,
-        direction=args.direction,
-        rtol=args.rtol,
-        floquet=args.floquet,
-        lyapunov=args.lyapunov,
-        grazing=args.grazing,
-        chains=args.chains,
-        workers=args.workers,
-        scheduler=args.scheduler,
-        checkpoint_dir=ckpt,
-        progress=not args.no_progress,
-    )
-    drawn = "impact" if args.section == "impact" else plot_state
-    write_directory(out, lambda tmp: write_sweep(result, tmp, scenario.name, drawn))
-    shutil.rmtree(ckpt, ignore_errors=True)
-    for g in result.grazings:
-        print(
-            f"grazing at {param.name} = {g['value']:.10g}: square-root law exponent "
-            f"{g['sqrt_law']['exponent']:.3f} (expected 0.5)"
-        )
-    print(
-        f"{scenario.name}: swept {param.name} over {param.count} values "
-        f"({', '.join(result.points)}); failed values {result.failed} -> {out}"
-    )
-    return EXIT_RUN_FAILED if any(result.failed.values()) else 0
-
-
-def _run_basins(args: argparse.Namespace, scenario: Any, opts: dict[str, Any], ckpt: Any) -> Any:
-    return api.basins(
-        scenario,
-        opts["grid"],
-        opts["samples"],
-        opts["region"],
-        seed=opts["seed"],
-        rtol=args.rtol,
-        workers=args.workers,
-        scheduler=args.scheduler,
-        checkpoint_dir=ckpt,
-        progress=not args.no_progress,
-        method=opts["method"],
-        slice=opts["slice"],
-    )
-
-
-def cmd_basins(args: argparse.Namespace) -> int:
-    from .analysis.cellmap import Grid
-    from .analysis.outputs import checkpoint_dir, write_basins
-    from .analysis.published import basins_summary
-    from .analysis.slices import parse_slice
-    from .figure_process import FigureProcess
-
-    scenario = api.load(args.scenario, args.set)
-    # the flags, else the scenario's [basins] table; bad input is refused before --out
-    keys = ("grid", "samples", "region", "seed", "method", "slice")
-    opts = {k: getattr(args, k) for k in keys}
-    opts = {k: v if v is not None else scenario.basins.get(k) for k, v in opts.items()}
-    for key in ("grid", "samples", "region"):
-        if opts[key] is None:
-            raise AnalysisError(
-                f"--{key}: not given, and the scenario has no basins.{key} to default to"
-            )
-    Grid.parse(opts["grid"], opts["region"])
-    if opts["slice"] is not None:
-        parse_slice(scenario.system, opts["slice"])
-    if opts["method"] not in (None, *BASIN_METHODS):
-        raise AnalysisError(f"--method {opts['method']!r}: one of {', '.join(BASIN_METHODS)}")
-    out = check_output_dir(args.out)
-    ckpt = checkpoint_dir(out)
-    # the figure's helper process: forked now, before the analysis starts its workers
-    with FigureProcess() as figures:
-        basins = _run_basins(args, scenario, opts, ckpt)
-        write_directory(
-            out, lambda tmp: write_basins(basins, tmp, scenario.name, basins.info, figures)
-        )
-    shutil.rmtree(ckpt, ignore_errors=True)
-    c = basins.counts()
-    labels = ", ".join(m["label"] for m in basins.motions)
-    print(
-        f"{scenario.name}: {basins.n_attractors} attractor(s) ({labels}); basin cells "
-        f"{c['basins']}, boundary {c['boundary']}, escape {c['escape']}; "
-        f"{basins.info['wall_time_s']:.1f} s -> {out}"
-    )
-    for line in basins_summary(basins, scenario.name):
-        print(line)
-    return 0
 
 
 def cmd_build_fmus(args: argparse.Namespace) -> int:
@@ -384,8 +169,8 @@ COMMANDS = {
     "run": cmd_run,
     "check": cmd_check,
     "build-fmus": cmd_build_fmus,
-    "sweep": cmd_sweep,
-    "basins": cmd_basins,
+    "sweep": cli_maps.cmd_sweep,
+    "basins": cli_maps.cmd_basins,
     "lyapunov": cli_lyapunov.cmd_lyapunov,
     "control-study": cli_control.cmd_control_study,
     "export-ssp": cli_ssp.cmd_export_ssp,

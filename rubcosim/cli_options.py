@@ -4,6 +4,10 @@ from __future__ import annotations
 
 import argparse
 
+# the exit codes of ``rubcosim``: bad input (refused before anything ran), a failed run
+EXIT_BAD_INPUT = 2
+EXIT_RUN_FAILED = 3
+
 
 def add_set_option(parser: argparse.ArgumentParser, what: str) -> None:
     """``--set UNIT.PARAM=VALUE`` (repeatable): overrides of ``what``."""

@@ -20,13 +20,13 @@ from functools import partial
 def _model(scenario: str) -> str:
     """The ``fast`` and ``accurate`` engines of the scenario's model."""
     from . import api
-    from .reference.specialize import model_label
+    from .reference.specialize import engine_label
 
     sc = api.load(scenario)
     t_end = sc.sim["t_start"] + 1e-3 * sc.system.forcing_period
     for engine in ("fast", "accurate"):
         api.simulate(sc, engine, set={"sim.t_end": t_end})
-    return f"the engines for {model_label(sc.system)}"
+    return f"the engines for {engine_label(sc.system)}"
 
 
 def _analyses() -> str:

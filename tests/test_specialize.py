@@ -26,7 +26,13 @@ def _source_of(module) -> str:
         return f.read()
 
 
-def test_a_copy_reads_its_family_as_constants():
+@pytest.fixture
+def family_scope(monkeypatch):
+    """The default scope, whatever the environment says."""
+    monkeypatch.setenv("RUBCOSIM_COMPILE_SCOPE", "family")
+
+
+def test_a_copy_reads_its_family_as_constants(family_scope):
     """Wiring, family scope (the default): the rigid stator's copy of the system reads
     its family and its controller as constants of the model, the rest from ``ip``."""
     system = _system("jeffcott_rigid_stator")
@@ -54,7 +60,7 @@ def test_in_model_scope_a_copy_reads_the_models_structure_as_constants(monkeypat
         specialized("rubcosim.reference.system", system.ip)
 
 
-def test_every_model_module_is_copied_with_its_imports_to_the_copies():
+def test_every_model_module_is_copied_with_its_imports_to_the_copies(family_scope):
     """Wiring: the copies of one model import each other, not the package's modules."""
     system = _system("impact_duffing")
     fast = specialized("rubcosim.reference.fast", system.ip)
@@ -88,7 +94,7 @@ def test_which_models_share_an_engine(monkeypatch):
         assert model_key(oscillator.ip) != model_key(two_dof.ip)
         same_stator_engine = model_key(rigid.ip) == model_key(elastic.ip)
         assert same_stator_engine == (scope == "family")
-    monkeypatch.delenv("RUBCOSIM_COMPILE_SCOPE")
+    monkeypatch.setenv("RUBCOSIM_COMPILE_SCOPE", "family")
     a = specialized("rubcosim.reference.fast", sine.ip)
     assert a is specialized("rubcosim.reference.fast", saw.ip)
     assert a is not specialized("rubcosim.reference.fast", rigid.ip)
@@ -121,7 +127,8 @@ _SECOND_RUN = textwrap.dedent(
 
 
 def _fresh_process() -> dict:
-    env = {**os.environ, "RUBCOSIM_QUIET_COMPILE": "1"}
+    # family scope, the default: the copies written by one process, found by the next
+    env = {**os.environ, "RUBCOSIM_QUIET_COMPILE": "1", "RUBCOSIM_COMPILE_SCOPE": "family"}
     out = subprocess.run(
         [sys.executable, "-c", _SECOND_RUN], capture_output=True, text=True, env=env, check=True
     )
@@ -158,3 +165,65 @@ def test_a_compilation_is_announced_once_with_its_time(capsys):
     with announce("a test kernel"):
         fresh(2.0)  # compiled already
     assert capsys.readouterr().err == ""
+
+
+def _kernel_values(modules: dict, system, rng: np.random.Generator) -> list[np.ndarray]:
+    """The right-hand side, the event functions and the outputs of ``system`` at a few
+    states around its initial one, in each of its first three modes (a delay-free
+    model: no history)."""
+    history, model = modules["history"], modules["system"]
+    p, ip = system.p, system.ip
+    yd = np.zeros(S.N_DELAYED)
+    values = []
+    for _ in range(3):
+        y = system.y0 + 0.1 * system.state_scale * rng.standard_normal(system.n_state)
+        for mode in range(3):
+            values.append(history.full_rhs_alloc(0.01, y, mode, p, ip, None))
+            g = np.zeros(S.N_EVENTS)
+            dirs, rates = np.zeros(S.N_EVENTS, np.int64), np.zeros(S.N_EVENTS, np.int64)
+            model.events(0.01, y, yd, mode, p, ip, g, dirs, rates)
+            out = np.zeros(len(system.output_names))
+            model.outputs(0.01, y, yd, mode, p, ip, out)
+            values += [g, dirs.astype(float), rates.astype(float), out]
+    return values
+
+
+# one test, not one per model: the modules' own kernels (every branch) compile once
+COPIED = ("jeffcott_rigid_stator", "jeffcott_offset_rigid_stator", "jeffcott_elastic_stator",
+          "jeffcott_elastic_casing", "two_mass_oilfilm_rub", "impact_duffing",
+          "two_dof_impact_oscillator")  # fmt: skip
+
+
+def test_a_copy_computes_what_the_modules_it_was_copied_from_compute(family_scope):
+    """Second compilation of the same kernels: a family's copy (family scope, the
+    default) and the modules themselves (which branch on ``ip`` at run time) give the
+    same right-hand side, event functions and outputs, bit for bit, on every bundled
+    delay-free model.  The copies differ from the modules only in the family's reads of
+    ``ip``, and those are in these kernels."""
+    from rubcosim.reference import history
+
+    modules = {"history": history, "system": S}
+    for name in COPIED:
+        system = _system(name)
+        copies = {m: specialized(f"rubcosim.reference.{m}", system.ip) for m in modules}
+        assert copies["system"] is not S
+        ours = _kernel_values(copies, system, np.random.default_rng(7))
+        theirs = _kernel_values(modules, system, np.random.default_rng(7))
+        for a, b in zip(ours, theirs, strict=True):
+            np.testing.assert_array_equal(a, b, err_msg=name)
+
+
+def test_the_engine_label_says_what_the_engine_serves(monkeypatch):
+    """Wiring: the compile notice names the family an engine serves, not only the model."""
+    from rubcosim.reference.specialize import engine_label
+
+    rigid, duffing = _system("jeffcott_rigid_stator"), _system("impact_duffing")
+    controlled = _system("jeffcott_delayed_feedback")
+    monkeypatch.setenv("RUBCOSIM_COMPILE_SCOPE", "family")
+    assert engine_label(rigid) == (
+        "the rotor family without a controller (here rotor.jeffcott + stator.rigid)"
+    )
+    assert engine_label(controlled).startswith("the rotor family with the delayed-feedback")
+    assert engine_label(duffing) == "oscillator.impact_oscillator"
+    monkeypatch.setenv("RUBCOSIM_COMPILE_SCOPE", "model")
+    assert engine_label(rigid) == "rotor.jeffcott + stator.rigid"

@@ -12,7 +12,6 @@ from rubcosim.compile_notice import announce
 from rubcosim.progress import watch
 from rubcosim.timegrid import output_grid
 
-from . import accurate, fast
 from .assemble import System
 from .core import (
     C_EVAL,
@@ -36,11 +35,11 @@ from .history import (
     new_queue,
     push_arrivals,
 )
-from .specialize import model_key, model_label, specialized
+from .specialize import engine_label, model_key, specialized
 from .system import KIND_NAMES
 
-ENGINES = {"fast": fast.integrate, "accurate": accurate.integrate}
-ENGINE_MODULES = {"fast": "rubcosim.reference.fast", "accurate": "rubcosim.reference.accurate"}
+# engine name -> its module (compiled per model: specialize.specialized)
+ENGINES = {"fast": "rubcosim.reference.fast", "accurate": "rubcosim.reference.accurate"}
 # scipy refuses tolerances tighter than 100 machine epsilons.
 MIN_RTOL = 100 * np.finfo(float).eps
 
@@ -121,7 +120,7 @@ def _warm_up(
     _WARM.add(key)
     t0 = time.perf_counter()
     tiny = 1e-6 * system.forcing_period
-    with announce(f"the {engine} engine for {model_label(system)}"):
+    with announce(f"the {engine} engine for {engine_label(system)}"):
         simulate(
             system,
             t_start + tiny,
@@ -176,7 +175,7 @@ def simulate(
     t_eval = np.ascontiguousarray(t_eval, dtype=float)
     max_step = min(max_step, system.min_delay())
     atol_arr = atol_rel * system.state_scale
-    integrate = specialized(ENGINE_MODULES[engine], system.ip).integrate
+    integrate = specialized(ENGINES[engine], system.ip).integrate
     # Parameters travel as tuples: values, not reference-counted arrays, so the
     # compiled kernels pay nothing for passing them down the call chain.
     # (tolist: Python floats and ints in one C call, 0.6 us where a generator took 4.5)

@@ -253,6 +253,21 @@ def model_label(system: Any) -> str:
     return " + ".join(f"{role}.{u.type}" for role, u in units.items()) or "this model"
 
 
+def engine_label(system: Any) -> str:
+    """What an engine compiled for ``system`` serves in the scope in force, for a person:
+    ``the rotor family without a controller (here rotor.jeffcott + stator.rigid)``."""
+    which, units = scope(), model_label(system)
+    if which == "model":
+        return units
+    from .system import CONTROLLER_NONE, FAMILY_ROTOR, IP_CONTROLLER, IP_FAMILY
+
+    if system.ip[IP_FAMILY] != FAMILY_ROTOR:
+        return units
+    with_controller = system.ip[IP_CONTROLLER] != CONTROLLER_NONE
+    family = "with the delayed-feedback controller" if with_controller else "without a controller"
+    return f"the rotor family {family} (here {units})"
+
+
 def specialized(name: str, ip: np.ndarray) -> ModuleType:
     """The copy of module ``name`` (one of :data:`MODEL_MODULES`) for the model whose
     integer array is ``ip``."""
