@@ -36,6 +36,7 @@ from rubcosim.components.units import unit_class
 from rubcosim.orchestrator.assembly import fmu_paths, unit_parameters
 
 from .errors import ScenarioError
+from .writing import ensure_writable_folder
 
 SSD = "http://ssp-standard.org/SSP1/SystemStructureDescription"
 SSC = "http://ssp-standard.org/SSP1/SystemStructureCommon"
@@ -152,6 +153,7 @@ def export_ssp(scenario: Any, out: str | Path, fmu_dir: Path | None = None) -> P
     out = Path(out)
     if out.suffix != ".ssp":
         raise ScenarioError(f"--out {out}: an SSP package's name ends in .ssp")
+    ensure_writable_folder(out.parent, out)
     check_exportable(scenario)  # before building any FMU
     types = {role: u.type for role, u in scenario.graph.units.items()}
     files = {role: Path(p) for role, p in fmu_paths(types, fmu_dir).items()}

@@ -20,9 +20,22 @@ class OutputPathError(ScenarioError):
     """The output directory cannot be used (nothing has been written)."""
 
 
+def ensure_writable_folder(folder: Path, given: str | Path) -> None:
+    """Create ``folder`` (with its parents) if need be and make sure a file can be made in
+    it; else :class:`OutputPathError` naming ``--out given`` and the system's reason.
+    Checked before a run, so that a run that cannot keep its results does not start."""
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        Path(tempfile.mkdtemp(prefix=".rubcosim-probe-", dir=folder)).rmdir()
+    except OSError as exc:
+        reason = exc.strerror or type(exc).__name__
+        raise OutputPathError(f"--out {given}: cannot write in {folder} ({reason})") from exc
+
+
 def check_output_dir(out_dir: str | Path) -> Path:
     """Refuse an output path that is a file, the working directory or one of its
-    parents, or a non-empty directory that is not an earlier result."""
+    parents, a non-empty directory that is not an earlier result, or one whose parent
+    cannot be created or written in."""
     out = Path(out_dir)
     resolved = out.resolve()
     if out.exists() and not out.is_dir():
@@ -35,6 +48,7 @@ def check_output_dir(out_dir: str | Path) -> Path:
         raise OutputPathError(
             f"--out {out_dir}: is a non-empty directory that holds no earlier result"
         )
+    ensure_writable_folder(out.parent, out_dir)
     return out
 
 

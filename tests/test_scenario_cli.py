@@ -891,6 +891,24 @@ def test_cli_out_is_existing_file(tmp_path, capsys):
     assert rc == 2
 
 
+@pytest.mark.parametrize("command", ["run", "export-ssp"])
+def test_cli_out_that_cannot_be_created_is_refused_before_the_run(tmp_path, capsys, command):
+    """An output under a file (its parent cannot be a directory) gets one error naming
+    --out, exit code 2 and no traceback, before anything runs (issue 49)."""
+    blocker = tmp_path / "a_file"
+    blocker.write_text("data")
+    out = blocker / ("system.ssp" if command == "export-ssp" else "results")
+    args = [command, str(LINEAR_OSC), "--set", OSC_SHORT, "--out", str(out)]
+    if command == "export-ssp":
+        args = [command, "jeffcott_elastic_stator", "--out", str(out)]
+    rc = main(args)
+    err = capsys.readouterr().err
+    assert rc == 2
+    assert f"--out {out}: cannot write in {blocker}" in err
+    assert "Traceback" not in err
+    assert blocker.read_text() == "data"
+
+
 def test_cli_out_is_current_directory(tmp_path, capsys, monkeypatch):
     work = tmp_path / "work"
     work.mkdir()
