@@ -1,5 +1,6 @@
 """The engine benchmark's floor (``bench_engines.py``): the cost of one compiled
-right-hand-side call, in a loop of independent calls and in one where each call waits
+right-hand-side call (the model's C function, called through its pointer as the engine
+calls it), in a loop of independent calls and in one where each call waits
 for the one before, taken in rounds paired with ``fast``'s runs; the same distance with
 the obstacle out of reach; and what a ``simulate`` call costs besides its steps."""
 
@@ -16,6 +17,7 @@ from engine_cases import MAX_EVENTS, Case, run_once, settle
 
 from rubcosim.reference import System, simulate
 from rubcosim.reference.history import full_rhs
+from rubcosim.reference.specialize import compiled_model
 from rubcosim.reference.system import N_DELAYED
 from rubcosim.reference.unowned import keep_alive, unowned
 
@@ -53,11 +55,11 @@ def _chained_rhs_calls(y0, p, ip, period, calls):  # pragma: no cover - compiled
     return last
 
 
-def _floor_args(system: System, state: np.ndarray) -> tuple[np.ndarray, tuple, tuple]:
-    """The floor loops' arguments: the state on the attractor and the parameter tuples."""
-    p = tuple(float(v) for v in system.p)
-    ip = tuple(int(v) for v in system.ip)
-    return np.ascontiguousarray(state, dtype=float), p, ip
+def _floor_args(system: System, state: np.ndarray) -> tuple[np.ndarray, np.ndarray, tuple]:
+    """The floor loops' arguments: the state on the attractor, the parameters and the
+    model tuple (:func:`rubcosim.reference.specialize.compiled_model`)."""
+    p = np.array(system.p, dtype=float)
+    return np.ascontiguousarray(state, dtype=float), p, compiled_model(system)
 
 
 def _spread(values: list[float]) -> dict[str, float]:

@@ -72,6 +72,29 @@ def solution_point(K, y, h, y_new):
 
 
 @njit(inline="always")
+def rk_stages(evaluate, ctx, t, y, f, h, K, y_new, f_new, ytmp):
+    """One DOP853 step of size ``h`` from ``(t, y)`` with ``f`` the slope there: the
+    stages into ``K`` (rows written in place), the solution into ``y_new`` and its slope
+    into ``f_new``.  ``evaluate(ctx, t, y, dy)`` (a compiled function, inlined with this
+    one) writes the right-hand side at ``(t, y)`` into ``dy``."""
+    n = y.shape[0]
+    for i in range(n):
+        K[0, i] = f[i]
+    # The slope at the solution is the loop's last pass: one copy of the inlined
+    # right-hand side for all of them (each copy costs seconds of a cold compile)
+    for s in range(1, N_STAGES + 1):
+        if s < N_STAGES:
+            stage_point(K, s, y, h, ytmp)
+            ts, point = t + C[s] * h, ytmp
+        else:
+            solution_point(K, y, h, y_new)
+            ts, point = t + h, y_new
+        evaluate(ctx, ts, point, K[s])  # straight into K's row
+    for i in range(n):
+        f_new[i] = K[N_STAGES, i]
+
+
+@njit(inline="always")
 def dense_from_stages(h, y_old, y_new, f_new, K, F):
     """scipy's DOP853 dense-output coefficients ``F`` (``N_DENSE`` x n) from all ``N_EXT``
     stages."""
@@ -85,6 +108,16 @@ def dense_from_stages(h, y_old, y_new, f_new, K, F):
         F[4, i] = h * d1
         F[5, i] = h * d2
         F[6, i] = h * d3
+
+
+@njit(inline="always")
+def dense_stages(evaluate, ctx, t_old, h, y_old, y_new, f_new, K, F, ytmp):
+    """The dense output's extra stages of the step just taken into ``K`` and its
+    coefficients ``F`` (:func:`dense_from_stages`); ``evaluate`` as in :func:`rk_stages`."""
+    for s in range(N_STAGES + 1, N_EXT):
+        stage_point(K, s, y_old, h, ytmp)
+        evaluate(ctx, t_old + C[s] * h, ytmp, K[s])
+    dense_from_stages(h, y_old, y_new, f_new, K, F)
 
 
 @njit(inline="always")

@@ -108,3 +108,37 @@ def announce(what: str) -> Iterator[None]:
         _state.active = False
         if listener.compiled > 0.0:
             _write(f"rubcosim: compiled {what} in {listener.compiled:.1f} s")
+
+
+# Loading C functions from numba's cache takes some tens of milliseconds; compiling
+# them, seconds.
+SLOW_S = 0.5
+
+
+@contextmanager
+def announce_when_slow(what: str) -> Iterator[None]:
+    """:func:`announce` for code that compiles without numba's compile events (C
+    functions, ``numba.cfunc``, compile as their module is imported): the first line
+    comes once the block has run :data:`SLOW_S`, which loading from the cache does not."""
+    if _quiet() or getattr(_state, "active", False):
+        yield
+        return
+    started = time.perf_counter()
+    said = threading.Event()
+
+    def first_line() -> None:
+        said.set()
+        _write(f"rubcosim: compiling {what} (first use; later runs load it from the cache)")
+
+    timer = threading.Timer(SLOW_S, first_line)
+    timer.daemon = True
+    timer.start()
+    _state.active = True
+    try:
+        yield
+    finally:
+        _state.active = False
+        timer.cancel()
+        timer.join()
+        if said.is_set():
+            _write(f"rubcosim: compiled {what} in {time.perf_counter() - started:.1f} s")

@@ -1,11 +1,12 @@
 """Compile the numba kernels of every bundled model into the cache, in parallel.
 
-A run compiles only its own model's engine (:mod:`rubcosim.reference.specialize`), on
-first use, and says so; nothing needs compiling ahead.  ``rubcosim warm-up`` is for
-those who want every bundled model ready (and for ``make test``, whose two workers
-would otherwise compile the same model at the same time): one job per model (its
-``fast`` and ``accurate`` engines), one for the analyses' kernels and one for the
-co-simulation's units and master, shared out over the worker processes.  Every later
+A run compiles what it uses on first use, and says so: the engines (once for every
+model) and its model's kernels (:mod:`rubcosim.reference.specialize`); nothing needs
+compiling ahead.  ``rubcosim warm-up`` is for those who want every bundled model ready
+(and for ``make test``, whose two workers would otherwise compile the same code at the
+same time): the engines with and without a delay, the analyses' loops, the
+co-simulation's units and master, and each bundled model's kernels, shared out over
+the worker processes.  Every later
 process loads the compiled code from the cache; a change of source compiles again,
 once.
 """
@@ -17,16 +18,26 @@ from concurrent.futures import ProcessPoolExecutor
 from functools import partial
 
 
-def _model(scenario: str) -> str:
-    """The ``fast`` and ``accurate`` engines of the scenario's model."""
+def _engines(scenario: str) -> str:
+    """The ``fast`` and ``accurate`` engines (one compilation serves every model), on
+    the scenario's model: with a delay if it has one, else without."""
     from . import api
-    from .reference.specialize import engine_label
 
     sc = api.load(scenario)
     t_end = sc.sim["t_start"] + 1e-3 * sc.system.forcing_period
     for engine in ("fast", "accurate"):
         api.simulate(sc, engine, set={"sim.t_end": t_end})
-    return f"the engines for {engine_label(sc.system)}"
+    return f"the engines {'with' if sc.system.has_delay else 'without'} a delay"
+
+
+def _kernels(scenario: str) -> str:
+    """The scenario's model's kernels (:func:`.reference.specialize.compiled_model`)."""
+    from . import api
+    from .reference.specialize import compiled_model, kernels_label
+
+    system = api.load(scenario).system
+    compiled_model(system)
+    return f"the kernels of {kernels_label(system)}"
 
 
 def _analyses() -> str:
@@ -97,20 +108,25 @@ def _distinct_models() -> list[str]:
     return sorted(seen.values())
 
 
-def jobs() -> list:
-    """The warm-up's jobs, longest first (so that the pool ends them together)."""
-    models = [partial(_model, name) for name in _distinct_models()]
-    return [_units, _analyses, _other_analyses, *models]
+def jobs() -> list[list]:
+    """The warm-up's jobs in two phases, each longest first (so that the pool ends them
+    together).  First the co-simulation, and in the other process the engines (which
+    every model shares), then the analyses, which call them and find them compiled
+    (the co-simulation keeps the other process busy until then).  Then every other
+    model's kernels and the analyses on other models (their kernels only)."""
+    engines = [partial(_engines, "impact_duffing"), partial(_engines, "jeffcott_delayed_feedback")]
+    models = [partial(_kernels, name) for name in _distinct_models()]
+    return [[_units, *engines, _analyses], [_other_analyses, *models]]
 
 
 def warm_up(workers: int = 2) -> list[tuple[str, float]]:
     """Run the warm-up jobs (in ``workers`` processes; 1: in this one); returns what each
     compiled and its wall time (s)."""
-    todo = jobs()
+    phases = jobs()
     if workers <= 1:
-        return [_timed(job) for job in todo]
+        return [_timed(job) for phase in phases for job in phase]
     with ProcessPoolExecutor(max_workers=workers) as pool:
-        return list(pool.map(_timed, todo))
+        return [done for phase in phases for done in pool.map(_timed, phase)]
 
 
 def _timed(job) -> tuple[str, float]:

@@ -15,7 +15,7 @@ import pytest
 from rubcosim.analysis.errors import AnalysisError
 from rubcosim.analysis.floquet import FLOQUET_RTOL, floquet
 from rubcosim.analysis.lyapunov import lyapunov_spectrum, monodromy
-from rubcosim.analysis.maps import StroboscopicMap
+from rubcosim.analysis.maps import StroboscopicMap, model_of
 from rubcosim.cli import main
 from rubcosim.reference.history import full_rhs_alloc
 from rubcosim.scenario import load_scenario
@@ -133,11 +133,11 @@ def test_rotor_on_a_penalty_stator_has_a_zero_exponent_and_the_damping_trace():
     T = lyap.interval
     # converges as 1 / periods (0.0075 per period after 2000 periods)
     assert np.min(np.abs(lyap.per_interval)) < 0.05
-    p, ip = tuple(system.p), tuple(int(v) for v in system.ip)
+    p, model = model_of(system)
     w = 2.0 * math.pi / T
 
     def xi(t: float, y: np.ndarray, mode: int) -> np.ndarray:
-        f = full_rhs_alloc(t, y, mode, p, ip, None)
+        f = full_rhs_alloc(t, y, mode, p, model, None)
         return (np.array([-y[1], y[0], -y[3], y[2]]) - f / w) / system.state_scale
 
     y0 = lyap.state

@@ -9,10 +9,12 @@ import subprocess
 import sys
 import textwrap
 
+import numba
 import numpy as np
 import pytest
 
 from rubcosim.reference import system as S
+from rubcosim.reference.model_calls import events, outputs
 from rubcosim.reference.specialize import MODEL_MODULES, model_key, model_label, specialized
 from rubcosim.scenario import load_scenario
 
@@ -60,22 +62,22 @@ def test_in_model_scope_a_copy_reads_the_models_structure_as_constants(monkeypat
         specialized("rubcosim.reference.system", system.ip)
 
 
-def test_every_model_module_is_copied_with_its_imports_to_the_copies(family_scope):
-    """Wiring: the copies of one model import each other, not the package's modules."""
+def test_the_kernels_copy_imports_the_systems_copy_and_nothing_else_is_copied(family_scope):
+    """Wiring: a model's C functions are compiled from its copy of the system; the
+    engines' machinery is not copied (one compilation serves every model)."""
     system = _system("impact_duffing")
-    fast = specialized("rubcosim.reference.fast", system.ip)
-    package = fast.__name__.rsplit(".", 1)[0]
-    assert fast.full_rhs.py_func.__module__ == f"{package}.reference_history"
-    assert fast.rk_step.py_func.__globals__["full_rhs"] is fast.full_rhs
-    strobe = specialized("rubcosim.analysis.strobe_kernels", system.ip)
-    assert strobe.integrate is fast.integrate
-    with pytest.raises(ValueError, match="does not depend on the model"):
-        specialized("rubcosim.components.stator", system.ip)
+    kernels = specialized("rubcosim.reference.model_kernels", system.ip)
+    copy = specialized("rubcosim.reference.system", system.ip)
+    assert kernels.rhs_c._pyfunc.__globals__["rhs"] is copy.rhs
+    assert (kernels.rhs_c, kernels.events_c, kernels.apply_c, kernels.outputs_c) == kernels.KERNELS
+    for machinery in ("rubcosim.reference.fast", "rubcosim.analysis.strobe_kernels"):
+        with pytest.raises(ValueError, match="does not depend on the model"):
+            specialized(machinery, system.ip)
     assert len(MODEL_MODULES) == len(set(MODEL_MODULES))
 
 
-def test_which_models_share_an_engine(monkeypatch):
-    """Wiring: a parameter or a choice (the modulation shape) never gives another engine;
+def test_which_models_share_their_kernels(monkeypatch):
+    """Wiring: a parameter or a choice (the modulation shape) never gives other kernels;
     in family scope a stator type does not either, a controller does; in model scope
     both do."""
     rigid = _system("jeffcott_rigid_stator")
@@ -92,12 +94,12 @@ def test_which_models_share_an_engine(monkeypatch):
         assert model_key(sine.ip) == model_key(saw.ip)
         assert model_key(rigid.ip) != model_key(controlled.ip)
         assert model_key(oscillator.ip) != model_key(two_dof.ip)
-        same_stator_engine = model_key(rigid.ip) == model_key(elastic.ip)
-        assert same_stator_engine == (scope == "family")
+        same_stator_kernels = model_key(rigid.ip) == model_key(elastic.ip)
+        assert same_stator_kernels == (scope == "family")
     monkeypatch.setenv("RUBCOSIM_COMPILE_SCOPE", "family")
-    a = specialized("rubcosim.reference.fast", sine.ip)
-    assert a is specialized("rubcosim.reference.fast", saw.ip)
-    assert a is not specialized("rubcosim.reference.fast", rigid.ip)
+    a = specialized("rubcosim.reference.model_kernels", sine.ip)
+    assert a is specialized("rubcosim.reference.model_kernels", saw.ip)
+    assert a is not specialized("rubcosim.reference.model_kernels", rigid.ip)
 
 
 def test_model_label_names_the_units():
@@ -119,9 +121,13 @@ _SECOND_RUN = textwrap.dedent(
             pass
 
     import rubcosim as rc
+    from rubcosim.reference.specialize import compiled_model
     with event.install_listener("numba:compile", Count()):
         res = rc.simulate("impact_oscillator_linear", "fast", set={"sim.t_end": 5.0})
-    print(json.dumps({"ok": res.ok, "compiled": compiled}))
+    # C functions compile without numba's compile events: their cache hits tell
+    kernels = compiled_model(rc.load("impact_oscillator_linear").system)[1:]
+    loaded = [k.cache_hits for k in kernels]
+    print(json.dumps({"ok": res.ok, "compiled": compiled, "kernels_loaded": loaded}))
     """
 )
 
@@ -138,18 +144,17 @@ def _fresh_process() -> dict:
 def test_a_second_process_of_a_scenario_compiles_nothing():
     """Caching across processes: a fresh process that runs a scenario whose engine is in
     numba's cache (the first one here put it there, if the cache was cold) starts no
-    numba compilation at all."""
+    numba compilation at all, and loads the model's four C functions from the cache."""
     first = _fresh_process()
     second = _fresh_process()
     assert first["ok"] and second["ok"]
     assert second["compiled"] == []
+    assert second["kernels_loaded"] == [1, 1, 1, 1]
 
 
 def test_a_compilation_is_announced_once_with_its_time(capsys):
     """The notice: one line naming what compiles, one with its time; nothing when the
     block compiles nothing."""
-    import numba
-
     from rubcosim.compile_notice import announce
 
     @numba.njit  # not cached: compiled in this process
@@ -167,63 +172,75 @@ def test_a_compilation_is_announced_once_with_its_time(capsys):
     assert capsys.readouterr().err == ""
 
 
-def _kernel_values(modules: dict, system, rng: np.random.Generator) -> list[np.ndarray]:
+@numba.njit
+def _through_the_pointers(model, t, y, yd, mode, p, g, dirs, rates, out):  # pragma: no cover
+    """The events and outputs as the engines call them (:mod:`.model_calls`)."""
+    events(t, y, yd, mode, p, model, g, dirs, rates)
+    outputs(t, y, yd, mode, p, model, out)
+
+
+def _kernel_values(system, rng: np.random.Generator, copied: bool) -> list[np.ndarray]:
     """The right-hand side, the event functions and the outputs of ``system`` at a few
     states around its initial one, in each of its first three modes (a delay-free
-    model: no history)."""
-    history, model = modules["history"], modules["system"]
-    p, ip = system.p, system.ip
+    model: no history): through the model's C functions (``copied``), or by the
+    package's own :mod:`.system`, which branches on ``ip`` at run time."""
+    from rubcosim.reference import history
+    from rubcosim.reference.specialize import compiled_model
+
+    p, ip = np.array(system.p, dtype=float), np.array(system.ip, dtype=np.int64)
+    model = compiled_model(system)
     yd = np.zeros(S.N_DELAYED)
     values = []
     for _ in range(3):
         y = system.y0 + 0.1 * system.state_scale * rng.standard_normal(system.n_state)
         for mode in range(3):
-            values.append(history.full_rhs_alloc(0.01, y, mode, p, ip, None))
             g = np.zeros(S.N_EVENTS)
             dirs, rates = np.zeros(S.N_EVENTS, np.int64), np.zeros(S.N_EVENTS, np.int64)
-            model.events(0.01, y, yd, mode, p, ip, g, dirs, rates)
             out = np.zeros(len(system.output_names))
-            model.outputs(0.01, y, yd, mode, p, ip, out)
+            if copied:
+                values.append(history.full_rhs_alloc(0.01, y, mode, p, model, None))
+                _through_the_pointers(model, 0.01, y, yd, mode, p, g, dirs, rates, out)
+            else:
+                dy = np.empty_like(y)
+                S.rhs(0.01, y, yd, mode, p, ip, dy)
+                values.append(dy)
+                S.events(0.01, y, yd, mode, p, ip, g, dirs, rates)
+                S.outputs(0.01, y, yd, mode, p, ip, out)
             values += [g, dirs.astype(float), rates.astype(float), out]
     return values
 
 
-# one test, not one per model: the modules' own kernels (every branch) compile once
+# one test, not one per model: the package's own kernels (every branch) compile once
 COPIED = ("jeffcott_rigid_stator", "jeffcott_offset_rigid_stator", "jeffcott_elastic_stator",
           "jeffcott_elastic_casing", "two_mass_oilfilm_rub", "impact_duffing",
           "two_dof_impact_oscillator")  # fmt: skip
 
 
 def test_a_copy_computes_what_the_modules_it_was_copied_from_compute(family_scope):
-    """Second compilation of the same kernels: a family's copy (family scope, the
-    default) and the modules themselves (which branch on ``ip`` at run time) give the
-    same right-hand side, event functions and outputs, bit for bit, on every bundled
-    delay-free model.  The copies differ from the modules only in the family's reads of
-    ``ip``, and those are in these kernels."""
-    from rubcosim.reference import history
-
-    modules = {"history": history, "system": S}
+    """Second compilation of the same kernels: a family's C functions (compiled from its
+    copy of the system, family scope) called through the engines' pointers, and the
+    package's own system (which branches on ``ip`` at run time) give the same
+    right-hand side, event functions and outputs, bit for bit, on every bundled
+    delay-free model."""
     for name in COPIED:
         system = _system(name)
-        copies = {m: specialized(f"rubcosim.reference.{m}", system.ip) for m in modules}
-        assert copies["system"] is not S
-        ours = _kernel_values(copies, system, np.random.default_rng(7))
-        theirs = _kernel_values(modules, system, np.random.default_rng(7))
+        ours = _kernel_values(system, np.random.default_rng(7), copied=True)
+        theirs = _kernel_values(system, np.random.default_rng(7), copied=False)
         for a, b in zip(ours, theirs, strict=True):
             np.testing.assert_array_equal(a, b, err_msg=name)
 
 
-def test_the_engine_label_says_what_the_engine_serves(monkeypatch):
-    """Wiring: the compile notice names the family an engine serves, not only the model."""
-    from rubcosim.reference.specialize import engine_label
+def test_the_kernels_label_says_what_the_engine_serves(monkeypatch):
+    """Wiring: the compile notice names the family the kernels serve, not only the model."""
+    from rubcosim.reference.specialize import kernels_label
 
     rigid, duffing = _system("jeffcott_rigid_stator"), _system("impact_duffing")
     controlled = _system("jeffcott_delayed_feedback")
     monkeypatch.setenv("RUBCOSIM_COMPILE_SCOPE", "family")
-    assert engine_label(rigid) == (
+    assert kernels_label(rigid) == (
         "the rotor family without a controller (here rotor.jeffcott + stator.rigid)"
     )
-    assert engine_label(controlled).startswith("the rotor family with the delayed-feedback")
-    assert engine_label(duffing) == "oscillator.impact_oscillator"
+    assert kernels_label(controlled).startswith("the rotor family with the delayed-feedback")
+    assert kernels_label(duffing) == "oscillator.impact_oscillator"
     monkeypatch.setenv("RUBCOSIM_COMPILE_SCOPE", "model")
-    assert engine_label(rigid) == "rotor.jeffcott + stator.rigid"
+    assert kernels_label(rigid) == "rotor.jeffcott + stator.rigid"

@@ -28,11 +28,10 @@ import numpy as np
 
 from rubcosim.reference.assemble import System
 from rubcosim.reference.core import STATUS_MESSAGES, STATUS_OK
-from rubcosim.reference.specialize import specialized
 from rubcosim.reference.tangent import FD_REL, T_LOGDET, T_TRACE
 
 from .errors import AnalysisError, MapError
-from .maps import DEFAULT_MAX_EVENTS
+from .maps import DEFAULT_MAX_EVENTS, model_of
 
 LYAPUNOV_RTOL = 1e-10
 DEFAULT_PERIODS = 1000
@@ -82,19 +81,20 @@ def _check_system(system: System) -> None:
 
 
 def _kernels(system: System) -> Any:
-    """The compiled variational loops (:mod:`.tangent_kernels`) of ``system``'s model."""
-    return specialized("rubcosim.analysis.tangent_kernels", system.ip)
+    """The compiled variational loops (:mod:`.tangent_kernels`): one module for every model."""
+    from . import tangent_kernels  # compiled on first use (numba's cache after that)
+
+    return tangent_kernels
 
 
 def _args(system: System, rtol: float, t_scale: float) -> tuple[Any, ...]:
-    """``p``, ``ip``, the engine's tolerances, difference steps: as the stroboscopic map."""
+    """``p``, the model tuple, the tolerances, difference steps: as the stroboscopic map."""
     if not (isinstance(rtol, float | int) and 1e-14 <= rtol < 1.0):
         raise AnalysisError(f"--rtol {rtol!r}: must be in [1e-14, 1)")
     scale = np.asarray(system.state_scale, dtype=float)
-    p = tuple(float(v) for v in system.p)
-    ip = tuple(int(v) for v in system.ip)
+    p, model = model_of(system)
     tol = (float(rtol), np.ascontiguousarray(rtol * scale), math.inf)
-    return p, ip, tol, np.ascontiguousarray(FD_REL * scale), FD_REL * t_scale
+    return p, model, tol, np.ascontiguousarray(FD_REL * scale), FD_REL * t_scale
 
 
 def monodromy(
@@ -110,12 +110,12 @@ def monodromy(
     :class:`MapError` when the engine fails."""
     _check_system(system)
     T = system.forcing_period
-    p, ip, tol, fd, t_fd = _args(system, rtol, T / (2.0 * math.pi))
+    p, model, tol, fd, t_fd = _args(system, rtol, T / (2.0 * math.pi))
     yy = np.array(y, dtype=float)
     Phi = np.eye(yy.size)
     stats = np.zeros(3)
     st, done, m_end, impacts = _kernels(system).tangent_periods(
-        yy, int(mode), 0.0, T, periods, p, ip, tol, max_events, Phi, fd, t_fd, stats
+        yy, int(mode), 0.0, T, periods, p, model, tol, max_events, Phi, fd, t_fd, stats
     )
     if st != STATUS_OK:
         raise MapError(f"the variational run failed: {STATUS_MESSAGES[st]} (period {done + 1})")
@@ -155,12 +155,12 @@ def lyapunov_spectrum(
     if y.shape != (n,) or not np.all(np.isfinite(y)):
         raise AnalysisError(f"y0 must be {n} finite numbers")
     m = system.mode0 if mode is None else int(mode)
-    p, ip, tol, fd, t_fd = _args(system, rtol, T / (2.0 * math.pi))
+    p, model, tol, fd, t_fd = _args(system, rtol, T / (2.0 * math.pi))
     Q = np.ascontiguousarray(np.eye(n)[:, :count])
     logs = np.zeros((periods, count))
     stats = np.zeros(3)
     st, done, m_end, impacts = _kernels(system).lyapunov_run(
-        y, m, 0.0, float(T), transient, periods, p, ip, tol, max_events, Q, fd, t_fd, logs, stats
+        y, m, 0.0, float(T), transient, periods, p, model, tol, max_events, Q, fd, t_fd, logs, stats
     )
     if st != STATUS_OK:
         where = f"measured interval {done + 1}" if done or st else "the transient"

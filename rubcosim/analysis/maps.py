@@ -13,15 +13,17 @@ and stators (``KIND_IMPACT`` and ``KIND_CONTACT_ON`` events): the ``m`` of an
 
 from __future__ import annotations
 
+import importlib
 import math
 from dataclasses import dataclass, field
 from types import ModuleType
+from typing import Any
 
 import numpy as np
 
 from rubcosim.reference.assemble import System
 from rubcosim.reference.core import STATUS_MESSAGES, STATUS_OK
-from rubcosim.reference.specialize import specialized
+from rubcosim.reference.specialize import compiled_model
 
 from .errors import MapError
 
@@ -30,8 +32,14 @@ STROBE_KERNELS = "rubcosim.analysis.strobe_kernels"
 
 
 def kernels(system: System) -> ModuleType:
-    """The compiled stroboscopic loops (:mod:`.strobe_kernels`) of ``system``'s model."""
-    return specialized(STROBE_KERNELS, system.ip)
+    """The compiled stroboscopic loops (:mod:`.strobe_kernels`): one module for every
+    model (the model's own kernels: :func:`model_of`)."""
+    return importlib.import_module(STROBE_KERNELS)
+
+
+def model_of(system: System) -> tuple[Any, ...]:
+    """``system``'s parameters and model tuple, as the compiled loops take them."""
+    return np.array(system.p, dtype=float), compiled_model(system)
 
 
 def obstacle_gaps(system: System, states: np.ndarray, mode: int) -> tuple[np.ndarray, np.ndarray]:
@@ -39,8 +47,7 @@ def obstacle_gaps(system: System, states: np.ndarray, mode: int) -> tuple[np.nda
     each state row (in ``mode``)."""
     Y = np.ascontiguousarray(np.atleast_2d(np.asarray(states, dtype=float)))
     gap, rate = np.empty(Y.shape[0]), np.empty(Y.shape[0])
-    p, ip = tuple(float(v) for v in system.p), tuple(int(v) for v in system.ip)
-    kernels(system).obstacle_gaps(Y, mode, p, ip, gap, rate)
+    kernels(system).obstacle_gaps(Y, mode, *model_of(system), gap, rate)
     return gap, rate
 
 
@@ -124,8 +131,6 @@ class StroboscopicMap:
         self.max_events = max_events
         self.atol = np.ascontiguousarray(self.rtol * system.state_scale)
         self.scale = np.asarray(system.state_scale, dtype=float)
-        self._p = tuple(float(v) for v in system.p)
-        self._ip = tuple(int(v) for v in system.ip)
 
     @property
     def _kernels(self) -> ModuleType:
@@ -170,8 +175,7 @@ class StroboscopicMap:
             self.period,
             skip,
             keep,
-            self._p,
-            self._ip,
+            *model_of(self.system),
             self.rtol,
             self.atol,
             math.inf,
@@ -227,8 +231,7 @@ class StroboscopicMap:
             0.0,
             self.period,
             periods,
-            self._p,
-            self._ip,
+            *model_of(self.system),
             self.rtol,
             self.atol,
             math.inf,

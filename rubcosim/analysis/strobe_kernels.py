@@ -14,6 +14,7 @@ import numpy as np
 from rubcosim.reference import system as S
 from rubcosim.reference.core import C_EVENTS, C_STATUS, N_COUNTERS, STATUS_OK, new_event_log
 from rubcosim.reference.fast import integrate
+from rubcosim.reference.model_calls import events
 from rubcosim.reference.unowned import keep_alive, unowned
 
 
@@ -73,7 +74,7 @@ def strobe_run(
     n_skip,
     n_keep,
     p,
-    ip,
+    model,
     rtol,
     atol,
     max_step,
@@ -98,12 +99,14 @@ def strobe_run(
     y = y0.copy()
     bufs = strobe_buffers(y.shape[0], max_events)
     tol = (rtol, atol, max_step)
-    return _strobe(y, mode0, t0, period, n_skip, n_keep, p, ip, tol, bufs, points, impacts,
+    return _strobe(y, mode0, t0, period, n_skip, n_keep, p, model, tol, bufs, points, impacts,
                    modes, (imp_t, imp_y, imp_count))  # fmt: skip
 
 
 @nb.njit(cache=True)
-def _strobe(y, mode, t0, period, n_skip, n_keep, p, ip, tol, bufs, points, impacts, modes, section):
+def _strobe(
+    y, mode, t0, period, n_skip, n_keep, p, model, tol, bufs, points, impacts, modes, section
+):
     """:func:`strobe_run` on the batch's buffers ``bufs`` (:func:`strobe_buffers`); ``y``
     is advanced in place; ``section = (imp_t, imp_y, imp_count)``."""
     n = y.shape[0]
@@ -116,7 +119,7 @@ def _strobe(y, mode, t0, period, n_skip, n_keep, p, ip, tol, bufs, points, impac
         qmeta[:] = 0
         t_a = t0 + k * period
         t_b = t0 + (k + 1) * period
-        t, mode = integrate(y, mode, t_a, t_b, p, ip, tol, out, None, dde, y_end, None)
+        t, mode = integrate(y, mode, t_a, t_b, p, model, tol, out, None, dde, y_end, None)
         if cnt[C_STATUS] != STATUS_OK:
             return cnt[C_STATUS], k, mode
         for i in range(n):
@@ -138,7 +141,7 @@ def map_many(
     period,
     n_periods,
     p,
-    ip,
+    model,
     rtol,
     atol,
     max_step,
@@ -172,7 +175,7 @@ def map_many(
         for k in range(n_periods):
             # np.int64, not literals: a literal argument is a compiled version of its own
             one_period = (np.int64(0), np.int64(1))
-            st, done, mode = _strobe(y, mode, t0 + k * period, period, *one_period, p, ip, tol,
+            st, done, mode = _strobe(y, mode, t0 + k * period, period, *one_period, p, model, tol,
                                      bufs, pts, imp, md, no_section)  # fmt: skip
             if st != STATUS_OK:
                 break
@@ -186,7 +189,7 @@ def map_many(
 
 
 @nb.njit(cache=True)
-def obstacle_gaps(Y, mode, p, ip, gap, rate):
+def obstacle_gaps(Y, mode, p, model, gap, rate):
     """For each state row: the smallest event function among the rigid-obstacle slots
     (those that fire on a decrease through zero: the gaps) in ``mode``, and its rate
     (``NaN`` without a rate slot); ``inf`` when there is no obstacle."""
@@ -195,7 +198,7 @@ def obstacle_gaps(Y, mode, p, ip, gap, rate):
     rates = np.empty(S.N_EVENTS, dtype=np.int64)
     yd = np.zeros(S.N_DELAYED)
     for j in range(Y.shape[0]):
-        S.events(0.0, Y[j], yd, mode, p, ip, g, dirs, rates)
+        events(0.0, Y[j], yd, mode, p, model, g, dirs, rates)
         gap[j] = np.inf
         rate[j] = np.nan
         for k in range(S.N_EVENTS):

@@ -20,13 +20,13 @@ from .strobe_kernels import _period_events
 
 
 @nb.njit(cache=True)
-def _interval(y, mode, t_a, t_b, p, ip, tol, out, dde, y_end, tan):
+def _interval(y, mode, t_a, t_b, p, model, tol, out, dde, y_end, tan):
     """One interval [t_a, t_b] (with the tangent ``tan``, or None); y advanced in
     place; returns ``(status, mode, impacts)``."""
     cnt = out[3]
     cnt[:] = 0
     dde[1][:] = 0
-    _, mode = integrate(y, mode, t_a, t_b, p, ip, tol, out, None, dde, y_end, tan)
+    _, mode = integrate(y, mode, t_a, t_b, p, model, tol, out, None, dde, y_end, tan)
     if cnt[C_STATUS] != STATUS_OK:
         return cnt[C_STATUS], mode, 0
     for i in range(y.shape[0]):
@@ -47,7 +47,9 @@ def _buffers(n, max_events):
 
 
 @nb.njit(cache=True)
-def tangent_periods(y, mode, t0, period, n_periods, p, ip, tol, max_events, Phi, fd, t_fd, stats):
+def tangent_periods(
+    y, mode, t0, period, n_periods, p, model, tol, max_events, Phi, fd, t_fd, stats
+):
     """Integrate ``n_periods`` intervals of ``period`` from ``(t0, y, mode)`` carrying
     ``Phi`` (advanced in place, as is ``y``); ``stats`` receives the tangent's
     statistics.  Returns ``(status, periods done, mode, impacts)``."""
@@ -57,7 +59,7 @@ def tangent_periods(y, mode, t0, period, n_periods, p, ip, tol, max_events, Phi,
     impacts = 0
     for k in range(n_periods):
         st, mode, m = _interval(
-            y, mode, t0 + k * period, t0 + (k + 1) * period, p, ip, tol, out, dde, y_end, tan
+            y, mode, t0 + k * period, t0 + (k + 1) * period, p, model, tol, out, dde, y_end, tan
         )
         if st != STATUS_OK:
             return st, k, mode, impacts
@@ -119,7 +121,7 @@ def lyapunov_run(
     n_transient,
     n_intervals,
     p,
-    ip,
+    model,
     tol,
     max_events,
     Q,
@@ -137,14 +139,14 @@ def lyapunov_run(
     y_end = np.empty(y.shape[0])
     for k in range(n_transient):
         t_a = t0 + k * interval
-        st, mode, _ = _interval(y, mode, t_a, t_a + interval, p, ip, tol, out, dde, y_end, None)
+        st, mode, _ = _interval(y, mode, t_a, t_a + interval, p, model, tol, out, dde, y_end, None)
         if st != STATUS_OK:
             return st, 0, mode, 0
     tan = new_tangent(Q, fd, t_fd)
     impacts = 0
     for k in range(n_intervals):
         t_a = t0 + (n_transient + k) * interval
-        st, mode, m = _interval(y, mode, t_a, t_a + interval, p, ip, tol, out, dde, y_end, tan)
+        st, mode, m = _interval(y, mode, t_a, t_a + interval, p, model, tol, out, dde, y_end, tan)
         if st != STATUS_OK:
             return st, k, mode, impacts
         impacts += m

@@ -24,7 +24,7 @@ from .history import (
 from .system import N_DELAYED
 
 
-def integrate(y0, mode, t0, t_end, p, ip, tol, out, hist, dde, y_final, tan=None):
+def integrate(y0, mode, t0, t_end, p, model, tol, out, hist, dde, y_final, tan=None):
     """Same contract as :func:`rubcosim.reference.fast.integrate`, without a tangent."""
     if tan is not None:
         raise ValueError("the accurate engine carries no tangent: use the fast engine")
@@ -44,16 +44,18 @@ def integrate(y0, mode, t0, t_end, p, ip, tol, out, hist, dde, y_final, tan=None
     forced_slot, forced_side = -1, 0
     h_last = 0.0
     cnt[core.C_EVAL] = core.record_point(
-        t, y, mode, p, ip, hist, t_eval, 0, rec, yd, np.empty(rec.shape[1])
+        t, y, mode, p, model, hist, t_eval, 0, rec, yd, np.empty(rec.shape[1])
     )
     while t < t_end and cnt[core.C_STATUS] == core.STATUS_OK:
-        bound = next_breakpoint(t, t_end, p, ip, queue, qmeta)
-        start_sides(t, y, mode, p, ip, hist, g_a, dirs, rates, side, yd, forced_slot, forced_side)
+        bound = next_breakpoint(t, t_end, p, model, queue, qmeta)
+        start_sides(
+            t, y, mode, p, model, hist, g_a, dirs, rates, side, yd, forced_slot, forced_side
+        )
         forced_slot = -1
         current_mode = mode
 
         def fun(tt, yy, _mode=current_mode):
-            return full_rhs_alloc(tt, yy, _mode, p, ip, hist)
+            return full_rhs_alloc(tt, yy, _mode, p, model, hist)
 
         # Same restart rule as the fast engine: after an event, the last accepted step.
         first_step = min(h_last, max_step, bound - t) if h_last > 0.0 else None
@@ -71,7 +73,7 @@ def integrate(y0, mode, t0, t_end, p, ip, tol, out, hist, dde, y_final, tan=None
                 break
             cnt[core.C_STEPS] += 1
             h_last = solver.step_size
-            step_end_events(solver.t, solver.y, mode, p, ip, hist, yd, g_b, dirs_b, rates_b)
+            step_end_events(solver.t, solver.y, mode, p, model, hist, yd, g_b, dirs_b, rates_b)
             if not core.needs_dense(solver.t, hist, g_a, side, dirs, rates, g_b, t_eval, cnt):
                 g_a[:] = g_b
                 sides_from(g_b, side)
@@ -87,7 +89,7 @@ def integrate(y0, mode, t0, t_end, p, ip, tol, out, hist, dde, y_final, tan=None
                 dense.F,
                 mode,
                 p,
-                ip,
+                model,
                 hist,
                 dde,
                 ev,

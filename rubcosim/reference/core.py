@@ -22,7 +22,8 @@ from .history import (
     max_history_age,
     push_arrivals,
 )
-from .system import KIND_IMPACT, N_DELAYED, N_EVENTS, apply_event, outputs
+from .model_calls import apply_event, outputs
+from .system import KIND_IMPACT, N_DELAYED, N_EVENTS
 
 STATUS_OK = 0
 STATUS_EVENT_LIMIT = 1
@@ -41,31 +42,33 @@ STATUS_MESSAGES = (
 
 
 @nb.njit(cache=True, inline="always")
-def record_row(t, y, mode, p, ip, hist, yd, obuf, rec, i):
+def record_row(t, y, mode, p, model, hist, yd, obuf, rec, i):
     """Outputs at time t of the state y into row i of ``rec``."""
-    delayed_state(t, p, ip, hist, yd)
-    outputs(t, y, yd, mode, p, ip, obuf)
+    delayed_state(t, p, model, hist, yd)
+    outputs(t, y, yd, mode, p, model, obuf)
     for c in range(rec.shape[1]):
         rec[i, c] = obuf[c]
 
 
 @njit(borrows=True)
-def record(t_lo, t_hi, t_old, h, y_old, F, mode, p, ip, hist, t_eval, i_eval, rec, ybuf, yd, obuf):
+def record(
+    t_lo, t_hi, t_old, h, y_old, F, mode, p, model, hist, t_eval, i_eval, rec, ybuf, yd, obuf
+):
     """Record outputs at the grid times in (t_lo, t_hi]; returns the next grid index."""
     while i_eval < t_eval.shape[0] and t_eval[i_eval] <= t_hi:
         te = t_eval[i_eval]
         if te > t_lo:
             dense_eval(t_old, h, y_old, F, te, ybuf, ybuf.shape[0])
-            record_row(te, ybuf, mode, p, ip, hist, yd, obuf, rec, i_eval)
+            record_row(te, ybuf, mode, p, model, hist, yd, obuf, rec, i_eval)
         i_eval += 1
     return i_eval
 
 
 @nb.njit(cache=True)
-def record_point(t, y, mode, p, ip, hist, t_eval, i_eval, rec, yd, obuf):
+def record_point(t, y, mode, p, model, hist, t_eval, i_eval, rec, yd, obuf):
     """Record outputs at grid times <= t from the state y (used at the start)."""
     while i_eval < t_eval.shape[0] and t_eval[i_eval] <= t:
-        record_row(t, y, mode, p, ip, hist, yd, obuf, rec, i_eval)
+        record_row(t, y, mode, p, model, hist, yd, obuf, rec, i_eval)
         i_eval += 1
     return i_eval
 
@@ -134,7 +137,7 @@ def needs_dense(t_b, hist, g_a, side, dirs, rates, g_b, t_eval, cnt):
 # arrays, field by field, twice per impact; inlined, the rotor runs ~15 % faster, and a
 # cold compile takes ~3 s longer (the event functions themselves stay calls)
 @njit(borrows=True, inline="always")
-def after_step(t_a, t_b, y_old, y_b, F, mode, p, ip, hist, dde, ev, out, y_out, work):
+def after_step(t_a, t_b, y_old, y_b, F, mode, p, model, hist, dde, ev, out, y_out, work):
     """Process an accepted step [t_a, t_b] with dense output F; ``ev = (g_a, side,
     dirs, rates, g_b)`` holds the event functions at t_a (with their sides,
     directions and rate slots) and at t_b; ``dde`` and ``out`` as for the engines'
@@ -153,15 +156,40 @@ def after_step(t_a, t_b, y_old, y_b, F, mode, p, ip, hist, dde, ev, out, y_out, 
     ybuf, yd, obuf, g, dtmp, rtmp = work
     seg = (t_a, h, y_old, F)
     k, te = find_event(
-        t_a, t_b, seg, (mode, p, ip), hist, (ybuf, yd, g, dtmp, rtmp), g_a, side, dirs, rates, g_b
+        t_a,
+        t_b,
+        seg,
+        (mode, p, model),
+        hist,
+        (ybuf, yd, g, dtmp, rtmp),
+        g_a,
+        side,
+        dirs,
+        rates,
+        g_b,
     )
     t_hi = te if k >= 0 else t_b
     if cnt[C_EVAL] < t_eval.shape[0] and t_eval[cnt[C_EVAL]] <= t_hi:  # else: no call
         cnt[C_EVAL] = record(
-            t_a, t_hi, t_a, h, y_old, F, mode, p, ip, hist, t_eval, cnt[C_EVAL], rec, ybuf, yd, obuf
+            t_a,
+            t_hi,
+            t_a,
+            h,
+            y_old,
+            F,
+            mode,
+            p,
+            model,
+            hist,
+            t_eval,
+            cnt[C_EVAL],
+            rec,
+            ybuf,
+            yd,
+            obuf,
         )
     if hist is not None:
-        history_push(hist, t_a, h, t_hi, y_old, F, t_hi - max_history_age(p, ip) - h, p, ip)
+        history_push(hist, t_a, h, t_hi, y_old, F, t_hi - max_history_age(p, model) - h, p, model)
     if k < 0:
         for i in range(n):
             y_out[i] = y_b[i]
@@ -170,8 +198,8 @@ def after_step(t_a, t_b, y_old, y_b, F, mode, p, ip, hist, dde, ev, out, y_out, 
         sides_from(g_b, side)
         return t_b, mode, -1, 0
     dense_eval(t_a, h, y_old, F, te, y_out, n)
-    delayed_state(te, p, ip, hist, yd)
-    new_mode, kind = apply_event(k, te, y_out, yd, mode, p, ip)
+    delayed_state(te, p, model, hist, yd)
+    new_mode, kind = apply_event(k, te, y_out, yd, mode, p, model)
     i_ev = cnt[C_EVENTS]
     ev_t, ev_kind, ev_slot, ev_mode, ev_y = evlog
     if i_ev < ev_t.shape[0]:
@@ -188,7 +216,7 @@ def after_step(t_a, t_b, y_old, y_b, F, mode, p, ip, hist, dde, ev, out, y_out, 
         # an impact makes the disc state jump, any other event (contact on or off, a
         # slip or a stick) its derivative: the delayed term inherits the jump or kink
         # one delay later, and the ETDAS filter, fitted per step, must not straddle it
-        push_arrivals(queue, qmeta, te, 1.0, p, ip)
+        push_arrivals(queue, qmeta, te, 1.0, p, model)
     if te - t_a <= time_round_off(te):
         cnt[C_SAME_TIME] += 1
     else:

@@ -35,24 +35,25 @@ from rubcosim.components.root_finding import (
 )
 
 from .history import delayed_state, dense_eval
+from .model_calls import events
 from .stack_arrays import stack_floats
-from .system import N_EVENTS, events
+from .system import N_EVENTS
 
 
 @nb.njit(cache=True, inline="always")
 def event_value(slot, t, seg, ctx, hist, scratch):
     """Event function ``slot`` at time t on the dense segment ``seg``.
 
-    ``seg = (t_old, h, y_old, F)``; ``ctx = (mode, p, ip)``;
+    ``seg = (t_old, h, y_old, F)``; ``ctx = (mode, p, model)``;
     ``scratch = (ybuf, yd, g, dirs, rates)``.  ``hist`` stays an argument of
     its own so that numba can compile away the delay when it is None.
     """
     t_old, h, y_old, F = seg
-    mode, p, ip = ctx
+    mode, p, model = ctx
     ybuf, yd, g, dirs, rates = scratch
     dense_eval(t_old, h, y_old, F, t, ybuf, ybuf.shape[0])
-    delayed_state(t, p, ip, hist, yd)
-    events(t, ybuf, yd, mode, p, ip, g, dirs, rates)
+    delayed_state(t, p, model, hist, yd)
+    events(t, ybuf, yd, mode, p, model, g, dirs, rates)
     return g[slot]
 
 
@@ -272,19 +273,19 @@ def event_candidate(g_a, side_a, dirs_a, rates_a, g_b):
 
 
 @nb.njit(cache=True, inline="always")
-def step_end_events(t, y, mode, p, ip, hist, yd, g_b, dirs_b, rates_b):
+def step_end_events(t, y, mode, p, model, hist, yd, g_b, dirs_b, rates_b):
     """Event functions at the end of a step (same mode as at its start)."""
-    delayed_state(t, p, ip, hist, yd)
-    events(t, y, yd, mode, p, ip, g_b, dirs_b, rates_b)
+    delayed_state(t, p, model, hist, yd)
+    events(t, y, yd, mode, p, model, g_b, dirs_b, rates_b)
 
 
 # a call, not inlined: it runs once per restart (after an event), and each inlined copy of
 # the system's event functions costs seconds of a cold compile
 @njit(borrows=True)
-def start_sides(t, y, mode, p, ip, hist, g, dirs, rates, side, yd, forced_slot, forced_side):
+def start_sides(t, y, mode, p, model, hist, g, dirs, rates, side, yd, forced_slot, forced_side):
     """Event functions at the start of a step and the side each one is on."""
-    delayed_state(t, p, ip, hist, yd)
-    events(t, y, yd, mode, p, ip, g, dirs, rates)
+    delayed_state(t, p, model, hist, yd)
+    events(t, y, yd, mode, p, model, g, dirs, rates)
     for k in range(N_EVENTS):
         side[k] = 1 if g[k] > 0.0 else (-1 if g[k] < 0.0 else 0)
     if forced_slot >= 0:

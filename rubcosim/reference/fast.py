@@ -17,16 +17,13 @@ from rubcosim.components.dop853 import (
     N_DENSE,
     N_EXT,
     N_STAGES,
-    C,
     below_min_step,
-    dense_from_stages,
+    dense_stages,
     error_norm,
     min_step,
     next_step,
-    solution_point,
-    stage_point,
+    rk_stages,
 )
-from rubcosim.components.jit import njit
 from rubcosim.components.kernels import all_finite
 
 from .core import (
@@ -54,8 +51,10 @@ from .history import (
     next_breakpoint,
     uses_history,
 )
+from .model_calls import dense_output
+from .model_calls import rk_step as model_rk_step
 from .stack_arrays import stack_floats, stack_ints, stack_matrix
-from .system import MAX_STATES, N_DELAYED, N_EVENTS, N_IP, N_P
+from .system import MAX_STATES, N_DELAYED, N_EVENTS, N_P
 from .tangent import tangent_after, tangent_step
 from .unowned import keep_alive, unowned
 
@@ -64,7 +63,7 @@ F_CAPACITY = N_DENSE * MAX_STATES
 
 
 @nb.njit(cache=True)
-def initial_step(t0, y0, f0, t_bound, max_step, rtol, atol, mode, p, ip, hist, yd, y1, f1, cnt):
+def initial_step(t0, y0, f0, t_bound, max_step, rtol, atol, mode, p, model, hist, yd, y1, f1, cnt):
     """scipy's ``select_initial_step`` (Hairer, Norsett & Wanner II.4), order 7."""
     n = y0.shape[0]
     interval = abs(t_bound - t0)
@@ -85,7 +84,7 @@ def initial_step(t0, y0, f0, t_bound, max_step, rtol, atol, mode, p, ip, hist, y
     h0 = min(h0, interval)
     for i in range(n):
         y1[i] = y0[i] + h0 * f0[i]
-    full_rhs_call(t0 + h0, y1, mode, p, ip, hist, yd, f1)
+    full_rhs_call(t0 + h0, y1, mode, p, model, hist, yd, f1)
     cnt[C_RHS] += 1
     d2 = 0.0
     for i in range(n):
@@ -99,46 +98,43 @@ def initial_step(t0, y0, f0, t_bound, max_step, rtol, atol, mode, p, ip, hist, y
     return min(100.0 * h0, h1, interval, max_step)
 
 
-# inlined into integrate's loop (one more copy of the right-hand side): 5-7 % faster
-# runs with impacts, ~4 s more of a cold compile
-@njit(borrows=True, inline="always")
-def dense_coefficients(t_old, h, y_old, y_new, f_new, K, mode, p, ip, hist, yd, F, ytmp, cnt):
-    """DOP853 dense output (scipy's F layout) for the step just taken; ``K`` a view that is
-    not reference-counted (its rows are written in place)."""
-    for s in range(N_STAGES + 1, N_EXT):
-        stage_point(K, s, y_old, h, ytmp)
-        full_rhs(t_old + C[s] * h, ytmp, mode, p, ip, hist, yd, K[s])
-        cnt[C_RHS] += 1
-    dense_from_stages(h, y_old, y_new, f_new, K, F)
+@nb.njit(cache=True, inline="always")
+def _full_rhs_in(ctx, t, y, dy):
+    mode, p, model, hist, yd = ctx
+    full_rhs(t, y, mode, p, model, hist, yd, dy)
 
 
 @nb.njit(cache=True, inline="always")
-def rk_step(t, y, f, h, mode, p, ip, hist, yd, K, y_new, f_new, ytmp, cnt):
+def rk_step(t, y, f, h, mode, p, model, hist, yd, K, y_new, f_new, ytmp, cnt):
     """One DOP853 step of size ``h`` from ``(t, y)`` with ``f`` the slope there: the stages
     into ``K`` (a view that is not reference-counted: its rows are written in place),
-    the solution into ``y_new`` and its slope into ``f_new``."""
-    n = y.shape[0]
-    for i in range(n):
-        K[0, i] = f[i]
-    # The slope at the solution is the loop's last pass: one copy of the inlined
-    # right-hand side for all of them (each copy costs seconds of a cold compile)
-    for s in range(1, N_STAGES + 1):
-        if s < N_STAGES:
-            stage_point(K, s, y, h, ytmp)
-            ts, point = t + C[s] * h, ytmp
-        else:
-            solution_point(K, y, h, y_new)
-            ts, point = t + h, y_new
-        # straight into K's row: K is a view that is not reference-counted (integrate's)
-        full_rhs(ts, point, mode, p, ip, hist, yd, K[s])
-    for i in range(n):
-        f_new[i] = K[N_STAGES, i]
+    the solution into ``y_new`` and its slope into ``f_new``.  Without a delay, one call
+    of the model's own step (its right-hand side inlined in it); with one, the stages
+    here, each looking up the delayed state and calling the right-hand side."""
+    if hist is None:
+        model_rk_step(t, y, f, h, mode, p, model, yd, K, y_new, f_new, ytmp)
+    else:
+        ctx = (mode, p, model, hist, yd)
+        rk_stages(_full_rhs_in, ctx, t, y, f, h, K, y_new, f_new, ytmp)
     cnt[C_RHS] += N_STAGES
+
+
+@nb.njit(cache=True, inline="always")
+def dense_coefficients(t_old, h, y_old, y_new, f_new, K, mode, p, model, hist, yd, F, ytmp, cnt):
+    """DOP853 dense output (scipy's F layout) for the step just taken; ``K`` a view that is
+    not reference-counted (its rows are written in place).  Without a delay, one call
+    of the model's own (:func:`rk_step`)."""
+    if hist is None:
+        dense_output(t_old, h, y_old, y_new, f_new, mode, p, model, yd, K, F, ytmp)
+    else:
+        ctx = (mode, p, model, hist, yd)
+        dense_stages(_full_rhs_in, ctx, t_old, h, y_old, y_new, f_new, K, F, ytmp)
+    cnt[C_RHS] += N_EXT - N_STAGES - 1
 
 
 # nogil: a progress thread (rubcosim.progress) reads the counters while it runs
 @nb.njit(cache=True, nogil=True)
-def integrate(y0, mode, t0, t_end, p, ip, tol, out, hist, dde, y_final, tan):
+def integrate(y0, mode, t0, t_end, p, model, tol, out, hist, dde, y_final, tan):
     """Integrate from t0 to t_end; returns ``(t, mode)`` reached (t < t_end on failure).
 
     ``tol = (rtol, atol array, max_step)``; ``out = (t_eval, rec, evlog, cnt)``: the
@@ -160,17 +156,14 @@ def integrate(y0, mode, t0, t_end, p, ip, tol, out, hist, dde, y_final, tan):
              unowned(evlog[4]))  # fmt: skip
     out, dde = (t_eval, rec, evlog, cnt), (queue, qmeta)
     n = y0.shape[0]
-    if n > MAX_STATES or len(p) > N_P or len(ip) > N_IP:
+    if n > MAX_STATES or len(p) > N_P:
         raise ValueError("integrate: more states or parameters than the layout's")
-    # The parameters (tuples: values the inlined right-hand side keeps in registers) as
-    # arrays on this function's stack too, for the calls that are not inlined (the event
-    # search, the outputs, the event map): numba passes a tuple argument by value, some
-    # sixty words onto the stack at every call, where an array is a pointer.
-    p_arr, ip_arr = stack_floats(N_P, len(p)), stack_ints(N_IP, len(ip))
+    # The parameters on this function's stack: the optimiser knows that no store into a
+    # stage or the state changes them (stack_arrays)
+    p_arr = stack_floats(N_P, len(p))
     for i in range(len(p)):
         p_arr[i] = p[i]
-    for i in range(len(ip)):
-        ip_arr[i] = ip[i]
+    p = p_arr
     # The step loop's scratch arrays live on this function's stack: no allocation, and
     # the optimiser knows that none of them overlaps another (stack_arrays).
     y, y_next, y_new = (
@@ -206,16 +199,16 @@ def integrate(y0, mode, t0, t_end, p, ip, tol, out, hist, dde, y_final, tan):
     ev = (g_a, side, dirs, rates, g_b)  # what after_step reads and updates
     forced_slot, forced_side = -1, 0
     h_last = 0.0
-    cnt[C_EVAL] = record_point(t, y, mode, p_arr, ip_arr, hist, t_eval, np.int64(0), rec, yd, obuf)
+    cnt[C_EVAL] = record_point(t, y, mode, p, model, hist, t_eval, np.int64(0), rec, yd, obuf)
     while t < t_end and cnt[C_STATUS] == STATUS_OK:
         bound = t_end
-        if uses_history(p, ip):  # next_breakpoint's own first test: without a delay, no call
-            bound = next_breakpoint(t, t_end, p_arr, ip_arr, queue, qmeta)
+        if uses_history(p, model):  # next_breakpoint's own first test: without a delay, no call
+            bound = next_breakpoint(t, t_end, p, model, queue, qmeta)
         start_sides(
-            t, y, mode, p_arr, ip_arr, hist, g_a, dirs, rates, side, yd, forced_slot, forced_side
+            t, y, mode, p, model, hist, g_a, dirs, rates, side, yd, forced_slot, forced_side
         )
         forced_slot = -1
-        full_rhs_call(t, y, mode, p_arr, ip_arr, hist, yd, f)
+        full_rhs_call(t, y, mode, p, model, hist, yd, f)
         cnt[C_RHS] += 1
         cnt[C_RESTARTS] += 1
         if h_last > 0.0:
@@ -232,8 +225,8 @@ def integrate(y0, mode, t0, t_end, p, ip, tol, out, hist, dde, y_final, tan):
                 rtol,
                 atol,
                 mode,
-                p_arr,
-                ip_arr,
+                p,
+                model,
                 hist,
                 yd,
                 ytmp,
@@ -255,7 +248,7 @@ def integrate(y0, mode, t0, t_end, p, ip, tol, out, hist, dde, y_final, tan):
                     t_new = bound
                 h = t_new - t
                 h_abs = abs(h)
-                rk_step(t, y, f, h, mode, p, ip, hist, yd, K, y_new, f_new, ytmp, cnt)
+                rk_step(t, y, f, h, mode, p, model, hist, yd, K, y_new, f_new, ytmp, cnt)
                 accepted, h_abs = next_step(error_norm(K, h, y, y_new, rtol, atol), h_abs, rejected)
                 if accepted:
                     break
@@ -268,11 +261,11 @@ def integrate(y0, mode, t0, t_end, p, ip, tol, out, hist, dde, y_final, tan):
                 break
             cnt[C_STEPS] += 1
             h_last = h
-            step_end_events(t_new, y_new, mode, p, ip, hist, yd, g_b, dirs_b, rates_b)
+            step_end_events(t_new, y_new, mode, p, model, hist, yd, g_b, dirs_b, rates_b)
             if not needs_dense(t_new, hist, g_a, side, dirs, rates, g_b, t_eval, cnt):
                 # Nothing to record, no delay to feed, no event possible: move on.
                 if tan is not None:  # compiled away without one: no call, no arguments
-                    tangent_step(tan, t, h, y, K, mode, p, ip, hist, yd)
+                    tangent_step(tan, t, h, y, K, mode, p, model, hist, yd)
                 # the new state and slope by exchanging the arrays' roles, not by
                 # copying: LLVM makes a copy loop two memcpy calls, at every step
                 y, y_new = y_new, y
@@ -282,13 +275,13 @@ def integrate(y0, mode, t0, t_end, p, ip, tol, out, hist, dde, y_final, tan):
                 sides_from(g_b, side)
                 t = t_new
                 continue
-            dense_coefficients(t, h, y, y_new, f_new, K, mode, p, ip, hist, yd, F, ytmp, cnt)
+            dense_coefficients(t, h, y, y_new, f_new, K, mode, p, model, hist, yd, F, ytmp, cnt)
             t_next, mode_next, fs, fside = after_step(
-                t, t_new, y, y_new, F, mode, p_arr, ip_arr, hist, dde, ev, out, y_next, work
+                t, t_new, y, y_new, F, mode, p, model, hist, dde, ev, out, y_next, work
             )
             if tan is not None:
                 modes = (mode, mode_next, fs)
-                tangent_after(tan, (t, h, y, F), K, t_next, modes, y_next, out, p, ip, hist, yd)
+                tangent_after(tan, (t, h, y, F), K, t_next, modes, y_next, out, p, model, hist, yd)
             y, y_next = y_next, y
             t = t_next
             if fs >= 0 or mode_next != mode:

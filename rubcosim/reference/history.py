@@ -32,6 +32,7 @@ from rubcosim.components.controller import (
 from rubcosim.components.dop853 import dense_eval, dense_poly
 from rubcosim.components.jit import njit
 
+from .model_calls import ip_of, rhs
 from .system import (
     CONTROLLER_NONE,
     FAMILY_ROTOR,
@@ -46,7 +47,6 @@ from .system import (
     P_CONTROLLER_MODULATION_SEED,
     P_CONTROLLER_T_ON,
     current_delay,
-    rhs,
 )
 
 # hmeta layout: start, count, capacity overflow flag
@@ -146,13 +146,13 @@ def filtered_eval(hist, tq, memory, out):
 
 
 @njit(borrows=True)
-def _fit_filter(hist, k, t_old, span, p, ip):
+def _fit_filter(hist, k, t_old, span, p, model):
     """The ETDAS filter on ``[t_old, t_old + span]`` into slot ``k``, from older segments."""
     nodes = hist[10]
     memory = p[P_CONTROLLER_MEMORY]
     for i in range(FILTER_NODES.shape[0]):
         t = t_old + FILTER_NODES[i] * span
-        filtered_eval(hist, t - current_delay(t, p, ip), memory, nodes[i])
+        filtered_eval(hist, t - current_delay(t, p, ip_of(model)), memory, nodes[i])
     hist[7][k] = span
     for c in range(N_DELAYED):
         for j in range(8):
@@ -166,7 +166,7 @@ def _fit_filter(hist, k, t_old, span, p, ip):
 
 
 @njit(borrows=True)
-def history_push(hist, t_old, h, t_end, y_old, F, keep_after, p, ip):
+def history_push(hist, t_old, h, t_end, y_old, F, keep_after, p, model):
     """Store a segment (and, with ETDAS memory, its filter); drop segments that end
     before ``keep_after``."""
     t0s, hs, tends, y0s, Fs, meta = hist[0], hist[1], hist[2], hist[3], hist[4], hist[5]
@@ -182,7 +182,7 @@ def history_push(hist, t_old, h, t_end, y_old, F, keep_after, p, ip):
         # before the segment joins the buffer: the filter's lookups reach back at
         # least the shortest delay, which exceeds the step
         span = t_end - t_old
-        _fit_filter(hist, k, t_old, span if span > 0.0 else h, p, ip)
+        _fit_filter(hist, k, t_old, span if span > 0.0 else h, p, model)
     t0s[k] = t_old
     hs[k] = h
     tends[k] = t_end
@@ -194,13 +194,15 @@ def history_push(hist, t_old, h, t_end, y_old, F, keep_after, p, ip):
 
 
 @nb.njit(cache=True, inline="always")
-def uses_history(p, ip):
+def uses_history(p, model):
     """Whether the system has a delay (a controller on a rotor)."""
-    return ip[IP_FAMILY] == FAMILY_ROTOR and ip[IP_CONTROLLER] != CONTROLLER_NONE
+    return (
+        ip_of(model)[IP_FAMILY] == FAMILY_ROTOR and ip_of(model)[IP_CONTROLLER] != CONTROLLER_NONE
+    )
 
 
 @nb.njit(cache=True, inline="always")
-def delayed_state(t, p, ip, hist, yd):
+def delayed_state(t, p, model, hist, yd):
     """The fed-back delayed disc state into ``yd``: ``z(t - tau)`` (Pyragas) or the
     ETDAS filter ``(1 - R) z(t - tau) + R S(t - tau)``; zero before ``t_on``.
     ``hist is None`` (no controller) compiles to nothing: the engines are
@@ -208,7 +210,7 @@ def delayed_state(t, p, ip, hist, yd):
     if hist is None:
         return
     if t >= p[P_CONTROLLER_T_ON]:
-        tq = t - current_delay(t, p, ip)
+        tq = t - current_delay(t, p, ip_of(model))
         if p[P_CONTROLLER_MEMORY] == 0.0:
             history_eval(hist, tq, yd)
         else:
@@ -219,24 +221,24 @@ def delayed_state(t, p, ip, hist, yd):
 
 
 @nb.njit(cache=True, inline="always")
-def full_rhs(t, y, mode, p, ip, hist, yd, dy):
+def full_rhs(t, y, mode, p, model, hist, yd, dy):
     """Right-hand side with the delayed state looked up in the history."""
-    delayed_state(t, p, ip, hist, yd)
-    rhs(t, y, yd, mode, p, ip, dy)
+    delayed_state(t, p, model, hist, yd)
+    rhs(t, y, yd, mode, p, model, dy)
 
 
 @njit(borrows=True)
-def full_rhs_call(t, y, mode, p, ip, hist, yd, dy):
+def full_rhs_call(t, y, mode, p, model, hist, yd, dy):
     """:func:`full_rhs` as a call, not inlined: for the sites that run once per restart
     (each inlined copy of the right-hand side costs seconds of a cold compile)."""
-    full_rhs(t, y, mode, p, ip, hist, yd, dy)
+    full_rhs(t, y, mode, p, model, hist, yd, dy)
 
 
 @nb.njit(cache=True)
-def full_rhs_alloc(t, y, mode, p, ip, hist):
+def full_rhs_alloc(t, y, mode, p, model, hist):
     dy = np.empty_like(y)
     yd = np.empty(N_DELAYED)
-    full_rhs(t, y, mode, p, ip, hist, yd, dy)
+    full_rhs(t, y, mode, p, model, hist, yd, dy)
     return dy
 
 
@@ -267,7 +269,7 @@ def queue_insert(queue, qmeta, value, level):
 
 
 @nb.njit(cache=True)
-def push_arrivals(queue, qmeta, tj, level, p, ip):
+def push_arrivals(queue, qmeta, tj, level, p, model):
     """Queue the times a jump at ``tj`` reaches the delayed term, at ``level``."""
     times = np.empty(4)
     n = delayed_arrivals(
@@ -275,7 +277,7 @@ def push_arrivals(queue, qmeta, tj, level, p, ip):
         p[P_CONTROLLER_BASE_DELAY],
         p[P_CONTROLLER_MODULATION_AMPLITUDE],
         p[P_CONTROLLER_MODULATION_FREQUENCY],
-        ip[IP_CONTROLLER_MODULATION_SHAPE],
+        ip_of(model)[IP_CONTROLLER_MODULATION_SHAPE],
         int(p[P_CONTROLLER_MODULATION_SEED]),
         times,
     )
@@ -284,14 +286,16 @@ def push_arrivals(queue, qmeta, tj, level, p, ip):
 
 
 @nb.njit(cache=True)
-def _modulation_jump_interval(p, ip):
+def _modulation_jump_interval(p, model):
     if p[P_CONTROLLER_MODULATION_AMPLITUDE] == 0.0:
         return math.inf
-    return switch_interval(p[P_CONTROLLER_MODULATION_FREQUENCY], ip[IP_CONTROLLER_MODULATION_SHAPE])
+    return switch_interval(
+        p[P_CONTROLLER_MODULATION_FREQUENCY], ip_of(model)[IP_CONTROLLER_MODULATION_SHAPE]
+    )
 
 
 @nb.njit(cache=True)
-def next_breakpoint(t, t_end, p, ip, queue, qmeta):
+def next_breakpoint(t, t_end, p, model, queue, qmeta):
     """Next time the delay equation has a known nonsmooth point after t.
 
     Passing a queued breakpoint of level k queues its own arrivals at level k + 1
@@ -299,7 +303,7 @@ def next_breakpoint(t, t_end, p, ip, queue, qmeta):
     a jump of the delay's modulation queues its arrivals at level 1 (with R > 0:
     the filter jumps there)."""
     tb = t_end
-    if not uses_history(p, ip):
+    if not uses_history(p, model):
         return tb
     eps_t = 4.0 * np.finfo(np.float64).eps * max(1.0, abs(t))
     if p[P_CONTROLLER_T_ON] > t + eps_t:
@@ -311,13 +315,13 @@ def next_breakpoint(t, t_end, p, ip, queue, qmeta):
         qmeta[Q_START] = (qmeta[Q_START] + 1) % cap
         qmeta[Q_COUNT] -= 1
         if memory > 0.0 and memory**level >= ETDAS_BREAKPOINT_FLOOR:
-            push_arrivals(queue, qmeta, passed, level + 1.0, p, ip)
-    width = _modulation_jump_interval(p, ip)
+            push_arrivals(queue, qmeta, passed, level + 1.0, p, model)
+    width = _modulation_jump_interval(p, model)
     if width < math.inf:
         m = piece_index(t, width)
         if memory > 0.0 and t - m * width <= PIECE_TOL * width + eps_t and m != qmeta[Q_SWITCH]:
             qmeta[Q_SWITCH] = int(m)
-            push_arrivals(queue, qmeta, m * width, 1.0, p, ip)
+            push_arrivals(queue, qmeta, m * width, 1.0, p, model)
         tb = min(tb, (m + 1.0) * width)
     if qmeta[Q_COUNT] > 0:
         tb = min(tb, queue[qmeta[Q_START], 0])
@@ -325,8 +329,8 @@ def next_breakpoint(t, t_end, p, ip, queue, qmeta):
 
 
 @nb.njit(cache=True)
-def max_history_age(p, ip):
+def max_history_age(p, model):
     """How far back the delay can reach, s."""
-    if not uses_history(p, ip):
+    if not uses_history(p, model):
         return 0.0
     return p[P_CONTROLLER_BASE_DELAY] + p[P_CONTROLLER_MODULATION_AMPLITUDE]

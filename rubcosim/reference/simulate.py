@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import importlib
 import math
 import time
 from dataclasses import dataclass, field
@@ -35,10 +36,11 @@ from .history import (
     new_queue,
     push_arrivals,
 )
-from .specialize import engine_label, model_key, specialized
+from .specialize import compiled_model, model_key
 from .system import KIND_NAMES
 
-# engine name -> its module (compiled per model: specialize.specialized)
+# engine name -> its module (compiled once for every model; the model's own kernels:
+# specialize.compiled_model)
 ENGINES = {"fast": "rubcosim.reference.fast", "accurate": "rubcosim.reference.accurate"}
 # scipy refuses tolerances tighter than 100 machine epsilons.
 MIN_RTOL = 100 * np.finfo(float).eps
@@ -114,13 +116,15 @@ def _warm_up(
     system: System, engine: str, t_start: float, rtol: float, atol: float, max_step: float
 ) -> float:
     """Load (or compile) the engine once per process, outside the timed run."""
-    key = (engine, model_key(system.ip))
+    key = (engine, model_key(system.ip), system.has_delay)
     if key in _WARM:
         return 0.0
     _WARM.add(key)
     t0 = time.perf_counter()
     tiny = 1e-6 * system.forcing_period
-    with announce(f"the {engine} engine for {engine_label(system)}"):
+    compiled_model(system)  # says so if it compiles
+    delay = "with a delay" if system.has_delay else "without a delay"
+    with announce(f"the {engine} engine for every model {delay}"):
         simulate(
             system,
             t_start + tiny,
@@ -175,12 +179,9 @@ def simulate(
     t_eval = np.ascontiguousarray(t_eval, dtype=float)
     max_step = min(max_step, system.min_delay())
     atol_arr = atol_rel * system.state_scale
-    integrate = specialized(ENGINES[engine], system.ip).integrate
-    # Parameters travel as tuples: values, not reference-counted arrays, so the
-    # compiled kernels pay nothing for passing them down the call chain.
-    # (tolist: Python floats and ints in one C call, 0.6 us where a generator took 4.5)
-    p_vals = tuple(np.asarray(system.p, dtype=float).tolist())
-    ip_vals = tuple(np.asarray(system.ip, dtype=np.int64).tolist())
+    integrate = importlib.import_module(ENGINES[engine]).integrate
+    p_vals = np.array(system.p, dtype=float)
+    model = compiled_model(system)
     warmup = _warm_up(system, engine, t_start, rtol, atol_rel, max_step)
     n = system.n_state
     capacity = history_capacity
@@ -193,7 +194,7 @@ def simulate(
         if system.has_delay:
             # the constant initial function meets the motion at t_start with a kink
             # (its derivative is zero): it reaches the delayed term one delay later
-            push_arrivals(queue, qmeta, t_start, 1.0, system.p, system.ip)
+            push_arrivals(queue, qmeta, t_start, 1.0, p_vals, model)
         cnt = np.zeros(N_COUNTERS, dtype=np.int64)
         y_final = np.empty(n)
         t0 = time.perf_counter()
@@ -211,7 +212,7 @@ def simulate(
                 t_start,
                 t_end,
                 p_vals,
-                ip_vals,
+                model,
                 (rtol, atol_arr, max_step),
                 (t_eval, rec, evlog, cnt),
                 hist,

@@ -1,27 +1,24 @@
-"""Compile the engines for one model only: per-model copies of the compiled modules.
+"""Compile one model's kernels only: per-model copies of the modules that hold them.
 
 The kernels of :mod:`.system` serve every model: they branch on ``ip`` (which
-units the system has, where their states are), and numba compiles every branch
-of every unit type into each engine, hundreds of times over through the inlined
-Runge-Kutta stages.  That is what a first run paid for: minutes of compiling for
-a model of two units.
+units the system has, where their states are), and numba would compile every
+branch of every unit type into each of them.  The engines' machinery does not
+depend on the model (it calls a model through the pointers of its model tuple,
+:mod:`.model_calls`); the kernels it calls are :mod:`.model_kernels`' C functions,
+compiled here per model.
 
-Here a model's engine is compiled from a copy of the compiled modules in which
-every structural read ``ip[IP_NAME]`` is the module constant ``M_IP_NAME`` of
-that model (a generated ``model`` module).  numba prunes a branch whose condition
-is a comparison of constants before it inlines or types anything, so the copy
-compiles the model's own units and nothing else.  The copies live in a package
-under numba's cache directory named by the hash of their text (the model's
-``ip`` and the sources), written once: a second process imports them and loads
-the compiled code from numba's cache, a different model gets its own package,
-and an edit of a source makes new copies (numba keys its cache on the file).
-
-Which modules are copied follows the imports: :mod:`.system` and every module
-of rubcosim that imports a copied module, among the names given by the caller
-(an analysis asks for its own kernels; the engines bring the rest).  A module
-that does not depend on the model (the Runge-Kutta tableau, the root finders)
-is imported from the package as usual, so its compiled code is shared by every
-model.
+A model's kernels are compiled from a copy of :mod:`.system` and
+:mod:`.model_kernels` in which every structural read ``ip[IP_NAME]`` that the
+compile scope names is the module constant ``M_IP_NAME`` of that model (a
+generated ``model`` module).  numba prunes a branch whose condition is a
+comparison of constants before it inlines or types anything, so the copy compiles
+the model's own units and nothing else.  The copies live in a package under
+numba's cache directory named by the hash of their text (the model's constants and
+the sources), written once: a second process imports them and loads the compiled
+code from numba's cache, a different model gets its own package, and an edit of a
+source makes new copies (numba keys its cache on the file).  A module that does not
+depend on the model (the Runge-Kutta tableau, the unit types' physics) is imported
+from the package as usual.
 """
 
 from __future__ import annotations
@@ -41,38 +38,31 @@ from typing import Any
 
 import numpy as np
 
+from rubcosim.compile_notice import announce_when_slow
+
 from .layout import LAYOUT
+from .model_calls import ModelTuple
 
 ROOT = "rubcosim.reference.system"
-# Every module that depends on the model, in an order where a module comes after what it
-# imports of these (numba resolves a copy's globals when it compiles, not on import).
-MODEL_MODULES = (
-    ROOT,
-    "rubcosim.reference.history",
-    "rubcosim.reference.event_search",
-    "rubcosim.reference.core",
-    "rubcosim.reference.tangent",
-    "rubcosim.reference.fast",
-    "rubcosim.reference.accurate",
-    "rubcosim.analysis.strobe_kernels",
-    "rubcosim.analysis.tangent_kernels",
-)
+# The modules copied per model, in an order where a module comes after what it imports
+# of these (numba resolves a copy's globals when it compiles, not on import).  The
+# engines' machinery is not among them: it calls a model through the pointers of its
+# model tuple (:mod:`.model_calls`) and is compiled once for every model.
+MODEL_MODULES = (ROOT, "rubcosim.reference.model_kernels")
 _HYBRID = ("hybrid_rhs", "hybrid_events", "hybrid_apply", "hybrid_outputs")
 _IP_READ = re.compile(r"\bip\[(?:S\.)?(IP_\w+)\]")
 # Which slots of ``ip`` a copy compiles in as constants: its scope.
 #
 # ``family`` (the default): the family (the rotor family, or hybrid unit type i) and
-# whether a delayed-feedback controller is there.  An impact oscillator's engine holds
-# its own kernels only; the rotor family's holds every rotor, stator and bearing type,
+# whether a delayed-feedback controller is there.  An impact oscillator's kernels hold
+# its own physics only; the rotor family's hold every rotor, stator and bearing type,
 # once without the controller and its delay and once with them.  ``model``: every slot
-# that says which unit types the model has and where their states are, so an engine
-# holds exactly the model's units.  A first run of one rotor model compiles about 1.5
-# times faster in ``model`` scope, but each rotor model then compiles its own engine,
-# and the engine's machinery (the step loop, the event search, the event handling)
-# costs more than the units in it: the whole test suite compiled about 2.5 times as
-# long (measured with both scopes, 2026-11-28).  ``RUBCOSIM_COMPILE_SCOPE=model`` picks
-# it.  A choice parameter's value (the controller's feedback and modulation shape) stays
-# a run-time read in either: one engine serves every choice.
+# that says which unit types the model has and where their states are, so the kernels
+# hold exactly the model's units: a rotor model's first compile is a little shorter
+# (9.7 s against 11.0 s before the kernels held a Runge-Kutta step), but every rotor
+# model then compiles its own, and the bundled ones are five.
+# ``RUBCOSIM_COMPILE_SCOPE=model`` picks it.  A choice parameter's value (the
+# controller's feedback and modulation shape) stays a run-time read in either.
 SCOPES = ("family", "model")
 _CHOICE_SLOTS = frozenset(LAYOUT.ip_choice.values())
 _FAMILY_SLOTS = ("IP_FAMILY", "IP_CONTROLLER")
@@ -253,8 +243,8 @@ def model_label(system: Any) -> str:
     return " + ".join(f"{role}.{u.type}" for role, u in units.items()) or "this model"
 
 
-def engine_label(system: Any) -> str:
-    """What an engine compiled for ``system`` serves in the scope in force, for a person:
+def kernels_label(system: Any) -> str:
+    """What the kernels compiled for ``system`` serve in the scope in force, for a person:
     ``the rotor family without a controller (here rotor.jeffcott + stator.rigid)``."""
     which, units = scope(), model_label(system)
     if which == "model":
@@ -274,3 +264,23 @@ def specialized(name: str, ip: np.ndarray) -> ModuleType:
     if name not in MODEL_MODULES:
         raise ValueError(f"{name} does not depend on the model")
     return importlib.import_module(f"{_package(model_key(ip))}.{_flat(name)}")
+
+
+def compiled_model(system: Any) -> tuple[Any, ...]:
+    """The model tuple the engines take (:mod:`.model_calls`): ``(ip, rhs, events, apply,
+    outputs)``, the kernels compiled for ``system``'s model (on first use, said on the
+    terminal; loaded from numba's cache after that)."""
+    key = model_key(system.ip)
+    if key not in _KERNELS:
+        # C functions compile as their module is imported, without the compile event
+        # that installs rubcosim's cheaper inlining (components/numba_compile_time.py)
+        from rubcosim.components.numba_compile_time import install
+
+        install()
+        with announce_when_slow(f"the kernels of {kernels_label(system)}"):
+            kernels = specialized("rubcosim.reference.model_kernels", system.ip).KERNELS
+        _KERNELS[key] = kernels
+    return ModelTuple((np.array(system.ip, dtype=np.int64), *_KERNELS[key]))
+
+
+_KERNELS: dict[tuple[int, ...], tuple[Any, ...]] = {}

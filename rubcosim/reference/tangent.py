@@ -65,7 +65,8 @@ from rubcosim.components.jit import njit
 
 from .core import C_EVENTS
 from .history import dense_eval, full_rhs
-from .system import N_EVENTS, apply_event, events
+from .model_calls import apply_event, events
+from .system import N_EVENTS
 
 FD_REL = 1e-6  # central-difference step, in state scales
 END_REL = 1e-8  # difference step at a step's ends (one-sided there: sqrt of round-off)
@@ -100,31 +101,31 @@ def new_tangent(Phi, fd, t_fd):
 
 
 @njit(borrows=True)
-def rhs_at(t, y, mode, p, ip, hist, yd, dy):
+def rhs_at(t, y, mode, p, model, hist, yd, dy):
     """The system's right-hand side as a call, not inlined: for the sites that run once
     per event (each inlined copy costs seconds of compilation)."""
-    full_rhs(t, y, mode, p, ip, hist, yd, dy)
+    full_rhs(t, y, mode, p, model, hist, yd, dy)
 
 
 @njit(borrows=True)
-def jacobian(t, ys, mode, p, ip, hist, yd, fd, J, fp, fm):
+def jacobian(t, ys, mode, p, model, hist, yd, fd, J, fp, fm):
     """J = df/dy at (t, ys) in ``mode`` by central differences of steps ``fd``."""
     n = ys.shape[0]
     for j in range(n):
         save = ys[j]
         ys[j] = save + fd[j]
         up = ys[j] - save  # the step actually taken, exact in floating point
-        full_rhs(t, ys, mode, p, ip, hist, yd, fp)
+        full_rhs(t, ys, mode, p, model, hist, yd, fp)
         ys[j] = save - fd[j]
         down = save - ys[j]
-        full_rhs(t, ys, mode, p, ip, hist, yd, fm)
+        full_rhs(t, ys, mode, p, model, hist, yd, fm)
         ys[j] = save
         for i in range(n):
             J[i, j] = (fp[i] - fm[i]) / (up + down)
 
 
 @njit(borrows=True)
-def sided_jacobian(t, ys, fs, mode, p, ip, hist, yd, fd, J, ref, fp, fm):
+def sided_jacobian(t, ys, fs, mode, p, model, hist, yd, fd, J, ref, fp, fm):
     """J at a step's end point (``fs = f(t, ys)``), which may sit on a kink of the
     vector field: per column the forward, backward or central difference (steps
     ``fd``) nearest to ``ref``, the Jacobian at the nearest stage inside the step.  Across a
@@ -136,10 +137,10 @@ def sided_jacobian(t, ys, fs, mode, p, ip, hist, yd, fd, J, ref, fp, fm):
         save = ys[j]
         ys[j] = save + fd[j]
         up = ys[j] - save
-        full_rhs(t, ys, mode, p, ip, hist, yd, fp)
+        full_rhs(t, ys, mode, p, model, hist, yd, fp)
         ys[j] = save - fd[j]
         down = save - ys[j]
-        full_rhs(t, ys, mode, p, ip, hist, yd, fm)
+        full_rhs(t, ys, mode, p, model, hist, yd, fm)
         ys[j] = save
         best = math.inf
         for c in range(3):
@@ -164,7 +165,7 @@ def sided_jacobian(t, ys, fs, mode, p, ip, hist, yd, fd, J, ref, fp, fm):
 
 
 @njit(borrows=True)
-def tangent_stages(tan, t, h, y, K, mode, p, ip, hist, yd):
+def tangent_stages(tan, t, h, y, K, mode, p, model, hist, yd):
     """Advance ``Phi`` over the step of size h from (t, y) with the state's stages K."""
     Phi, fd, small, _, _, KP, ptmp, pnew, Js, Ys, fp, fm, _, stats = tan
     n, k = Phi.shape
@@ -173,12 +174,12 @@ def tangent_stages(tan, t, h, y, K, mode, p, ip, hist, yd):
         stage_point(K, s, y, h, Ys[s])
     last = N_STAGES - 1  # C[0] = 0 and C[last] = 1: the step's ends
     for s in range(1, last):
-        jacobian(t + C[s] * h, Ys[s], mode, p, ip, hist, yd, fd, Js[s], fp, fm)
+        jacobian(t + C[s] * h, Ys[s], mode, p, model, hist, yd, fd, Js[s], fp, fm)
     # the ends may sit on a kink: their side is told by the nearest stage inside
-    sided_jacobian(t, Ys[0], K[0], mode, p, ip, hist, yd, small, Js[0], Js[1], fp, fm)
+    sided_jacobian(t, Ys[0], K[0], mode, p, model, hist, yd, small, Js[0], Js[1], fp, fm)
     end = t + h
     sided_jacobian(
-        end, Ys[last], K[last], mode, p, ip, hist, yd, small, Js[last], Js[last - 1], fp, fm
+        end, Ys[last], K[last], mode, p, model, hist, yd, small, Js[last], Js[last - 1], fp, fm
     )
     trace = 0.0
     for s in range(N_STAGES):
@@ -198,26 +199,26 @@ def tangent_stages(tan, t, h, y, K, mode, p, ip, hist, yd):
 
 
 @njit(borrows=True)
-def fresh_stages(tan, t, h, y, K, mode, p, ip, hist, yd):
+def fresh_stages(tan, t, h, y, K, mode, p, model, hist, yd):
     """The state's stages 1.. of a step of size h from (t, y) into K (``K[0] = f(t, y)``
     given): a step cut short by an event, re-taken for the tangent.  Apart from
     :func:`tangent_stages` so that it compiles once (a flag there made two copies)."""
     Ys, fp = tan[9], tan[10]
     for s in range(1, N_STAGES):
         stage_point(K, s, y, h, Ys[s])
-        rhs_at(t + C[s] * h, Ys[s], mode, p, ip, hist, yd, fp)
+        rhs_at(t + C[s] * h, Ys[s], mode, p, model, hist, yd, fp)
         for i in range(y.shape[0]):
             K[s, i] = fp[i]
 
 
 @njit(borrows=True)
-def event_function(k, t, y, mode, p, ip, yd, g, dirs, rates):
-    events(t, y, yd, mode, p, ip, g, dirs, rates)
+def event_function(k, t, y, mode, p, model, yd, g, dirs, rates):
+    events(t, y, yd, mode, p, model, g, dirs, rates)
     return g[k]
 
 
 @nb.njit(cache=True)
-def saltation(tan, k, te, ym, mode, yp, mode_new, p, ip, hist, yd):
+def saltation(tan, k, te, ym, mode, yp, mode_new, p, model, hist, yd):
     """Apply the saltation matrix of the event of slot k at ``te`` (pre-event state
     ``ym`` in ``mode``, post-event ``yp`` in ``mode_new``) to ``Phi``."""
     Phi, fd, _, t_fd, _, _, _, _, Js, Ys, fp, fm, work, stats = tan
@@ -227,29 +228,29 @@ def saltation(tan, k, te, ym, mode, yp, mode_new, p, ip, hist, yd):
     dirs = np.empty(N_EVENTS, dtype=np.int64)
     rates = np.empty(N_EVENTS, dtype=np.int64)
     grad = np.empty(n)
-    rhs_at(te, ym, mode, p, ip, hist, yd, fm)
-    rhs_at(te, yp, mode_new, p, ip, hist, yd, fp)
+    rhs_at(te, ym, mode, p, model, hist, yd, fm)
+    rhs_at(te, yp, mode_new, p, model, hist, yd, fp)
     for j in range(n):
         for i in range(n):
             ys[i] = ym[i]
         ys[j] = ym[j] + fd[j]
         up = ys[j] - ym[j]
-        g_up = event_function(k, te, ys, mode, p, ip, yd, g, dirs, rates)
-        apply_event(k, te, ys, yd, mode, p, ip)
+        g_up = event_function(k, te, ys, mode, p, model, yd, g, dirs, rates)
+        apply_event(k, te, ys, yd, mode, p, model)
         for i in range(n):
             DG[i, j] = ys[i]
         for i in range(n):
             ys[i] = ym[i]
         ys[j] = ym[j] - fd[j]
         down = ym[j] - ys[j]
-        g_down = event_function(k, te, ys, mode, p, ip, yd, g, dirs, rates)
-        apply_event(k, te, ys, yd, mode, p, ip)
+        g_down = event_function(k, te, ys, mode, p, model, yd, g, dirs, rates)
+        apply_event(k, te, ys, yd, mode, p, model)
         for i in range(n):
             DG[i, j] = (DG[i, j] - ys[i]) / (up + down)
         grad[j] = (g_up - g_down) / (up + down)
     h_t = (
-        event_function(k, te + t_fd, ym, mode, p, ip, yd, g, dirs, rates)
-        - event_function(k, te - t_fd, ym, mode, p, ip, yd, g, dirs, rates)
+        event_function(k, te + t_fd, ym, mode, p, model, yd, g, dirs, rates)
+        - event_function(k, te - t_fd, ym, mode, p, model, yd, g, dirs, rates)
     ) / (2.0 * t_fd)
     rate = h_t
     for j in range(n):
@@ -279,15 +280,15 @@ def saltation(tan, k, te, ym, mode, yp, mode_new, p, ip, hist, yd):
 
 
 @njit(borrows=True)
-def tangent_step(tan, t, h, y, K, mode, p, ip, hist, yd):
+def tangent_step(tan, t, h, y, K, mode, p, model, hist, yd):
     """The engine's hook after a step [t, t + h] accepted without dense output."""
     if tan is None:
         return
-    tangent_stages(tan, t, h, y, K, mode, p, ip, hist, yd)
+    tangent_stages(tan, t, h, y, K, mode, p, model, hist, yd)
 
 
 @nb.njit(cache=True)
-def tangent_after(tan, seg, K, t_next, modes, y_next, out, p, ip, hist, yd):
+def tangent_after(tan, seg, K, t_next, modes, y_next, out, p, model, hist, yd):
     """The engine's hook after :func:`~rubcosim.reference.core.after_step` of the step
     ``seg = (t, h, y, F)`` with stages K: the step (up to the event, if one was
     applied at ``t_next``) and the event's saltation matrix; ``modes = (mode before,
@@ -298,18 +299,18 @@ def tangent_after(tan, seg, K, t_next, modes, y_next, out, p, ip, hist, yd):
     mode, mode_next, fs = modes
     evlog, cnt = out[2], out[3]
     if fs < 0 and mode_next == mode:  # no event: the whole step
-        tangent_stages(tan, t, h, y, K, mode, p, ip, hist, yd)
+        tangent_stages(tan, t, h, y, K, mode, p, model, hist, yd)
         return
     te = t_next
     Ks = tan[4]
     if te >= t + h:
-        tangent_stages(tan, t, h, y, K, mode, p, ip, hist, yd)
+        tangent_stages(tan, t, h, y, K, mode, p, model, hist, yd)
     elif te > t:
         for i in range(y.shape[0]):
             Ks[0, i] = K[0, i]
-        fresh_stages(tan, t, te - t, y, Ks, mode, p, ip, hist, yd)
-        tangent_stages(tan, t, te - t, y, Ks, mode, p, ip, hist, yd)
+        fresh_stages(tan, t, te - t, y, Ks, mode, p, model, hist, yd)
+        tangent_stages(tan, t, te - t, y, Ks, mode, p, model, hist, yd)
     ym = np.empty(y.shape[0])
     dense_eval(t, h, y, F, te, ym, y.shape[0])
     k = evlog[2][cnt[C_EVENTS] - 1]
-    saltation(tan, k, te, ym, mode, y_next, mode_next, p, ip, hist, yd)
+    saltation(tan, k, te, ym, mode, y_next, mode_next, p, model, hist, yd)

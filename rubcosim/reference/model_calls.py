@@ -1,0 +1,95 @@
+"""How the engines' machinery calls a model: through the pointers of a model tuple.
+
+A *model tuple* is ``(ip, rhs, events, apply, outputs, step, dense)``: the system's integer
+array and its kernels, C functions compiled per model family (:mod:`.model_kernels`,
+:func:`.specialize.compiled_model`).  Every module of the machinery takes it where
+the kernels of :mod:`.system` once took ``ip``, and calls the model through the
+functions below, which have :mod:`.system`'s signatures.  numba types a C function as
+a ``FunctionType`` of its signature, not as the function itself, so the machinery is
+compiled, and cached, once for every model: what a new model compiles is its kernels.
+
+The price is an indirect call where the right-hand side used to be inlined into the
+Runge-Kutta stages (measured in ``benchmarks/bench_engines.py``).
+"""
+
+from __future__ import annotations
+
+import warnings
+from typing import Any
+
+import numba as nb
+from numba.core.errors import NumbaExperimentalFeatureWarning
+from numba.extending import typeof_impl
+
+# numba calls first-class function types experimental; they are what this module is
+warnings.filterwarnings("ignore", category=NumbaExperimentalFeatureWarning)
+
+M_IP, M_RHS, M_EVENTS, M_APPLY, M_OUTPUTS, M_STEP, M_DENSE = range(7)
+
+
+class ModelTuple(tuple):
+    """A model tuple as Python code holds it (:func:`.specialize.compiled_model`).  numba
+    types a plain tuple of C functions anew at every call from Python, some 0.2 ms, and
+    the ``accurate`` engine calls compiled code with it at every stage; this one is
+    typed once (every model tuple has the same type: the kernels' signatures are fixed)."""
+
+    __slots__ = ()
+
+
+_MODEL_TYPE: list[Any] = []
+
+
+@typeof_impl.register(ModelTuple)
+def _typeof_model(val: ModelTuple, c: Any) -> Any:
+    if not _MODEL_TYPE:
+        _MODEL_TYPE.append(nb.typeof(tuple(val)))
+    return _MODEL_TYPE[0]
+
+
+# an event map's (new mode, kind) travels as new mode * KIND_BASE + kind (every kind is
+# below it): a C function returns one scalar
+KIND_BASE = 64
+
+
+@nb.njit(cache=True, inline="always")
+def ip_of(model):
+    """The system's integer array (family, units, state offsets)."""
+    return model[M_IP]
+
+
+@nb.njit(cache=True, inline="always")
+def rhs(t, y, yd, mode, p, model, dy):
+    """dy/dt for the system in ``mode``; ``yd`` the delayed disc state."""
+    model[M_RHS](t, y, yd, mode, p, model[M_IP], dy)
+
+
+@nb.njit(cache=True, inline="always")
+def events(t, y, yd, mode, p, model, g, dirs, rates):
+    """Fill the event functions ``g``, their directions and rate companions."""
+    model[M_EVENTS](t, y, yd, mode, p, model[M_IP], g, dirs, rates)
+
+
+@nb.njit(cache=True, inline="always")
+def apply_event(k, t, y, yd, mode, p, model):
+    """Apply the event of slot ``k`` at time t (may change y in place); returns
+    ``(new_mode, kind)``."""
+    code = model[M_APPLY](k, t, y, yd, mode, p, model[M_IP])
+    return code // KIND_BASE, code % KIND_BASE
+
+
+@nb.njit(cache=True, inline="always")
+def outputs(t, y, yd, mode, p, model, out):
+    """The recorded outputs (:func:`.system.output_names`) into ``out``."""
+    model[M_OUTPUTS](t, y, yd, mode, p, model[M_IP], out)
+
+
+@nb.njit(cache=True, inline="always")
+def rk_step(t, y, f, h, mode, p, model, yd, K, y_new, f_new, ytmp):
+    """A DOP853 step of a delay-free model (:func:`.model_kernels.step_c`)."""
+    model[M_STEP](t, y, f, h, mode, p, model[M_IP], yd, K, y_new, f_new, ytmp)
+
+
+@nb.njit(cache=True, inline="always")
+def dense_output(t_old, h, y_old, y_new, f_new, mode, p, model, yd, K, F, ytmp):
+    """The dense output of a delay-free model's step (:func:`.model_kernels.dense_c`)."""
+    model[M_DENSE](t_old, h, y_old, y_new, f_new, mode, p, model[M_IP], yd, K, F, ytmp)
