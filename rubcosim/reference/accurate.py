@@ -11,16 +11,10 @@ from __future__ import annotations
 
 import numpy as np
 
+from . import accurate_calls as calls
 from . import core
-from .event_search import (
-    sides_from,
-    start_sides,
-    step_end_events,
-)
-from .history import (
-    full_rhs_alloc,
-    next_breakpoint,
-)
+from .event_search import sides_from
+from .model_calls import as_ref
 from .system import N_DELAYED
 
 
@@ -43,19 +37,17 @@ def integrate(y0, mode, t0, t_end, p, model, tol, out, hist, dde, y_final, tan=N
     work = core.new_workspace(n, rec.shape[1])
     forced_slot, forced_side = -1, 0
     h_last = 0.0
-    cnt[core.C_EVAL] = core.record_point(
-        t, y, mode, p, model, hist, t_eval, 0, rec, yd, np.empty(rec.shape[1])
-    )
+    ref = as_ref(model)  # one reference for the many calls below
+    cnt[core.C_EVAL] = calls.first_record(t, y, mode, p, ref, hist, t_eval, rec, yd,
+                                          np.empty(rec.shape[1]))  # fmt: skip
     while t < t_end and cnt[core.C_STATUS] == core.STATUS_OK:
-        bound = next_breakpoint(t, t_end, p, model, queue, qmeta)
-        start_sides(
-            t, y, mode, p, model, hist, g_a, dirs, rates, side, yd, forced_slot, forced_side
-        )
+        bound = calls.bound(t, t_end, p, ref, queue, qmeta)
+        calls.sides(t, y, mode, p, ref, hist, g_a, dirs, rates, side, yd, forced_slot, forced_side)
         forced_slot = -1
         current_mode = mode
 
         def fun(tt, yy, _mode=current_mode):
-            return full_rhs_alloc(tt, yy, _mode, p, model, hist)
+            return calls.rhs(tt, yy, _mode, p, ref, hist)
 
         # Same restart rule as the fast engine: after an event, the last accepted step.
         first_step = min(h_last, max_step, bound - t) if h_last > 0.0 else None
@@ -73,7 +65,7 @@ def integrate(y0, mode, t0, t_end, p, model, tol, out, hist, dde, y_final, tan=N
                 break
             cnt[core.C_STEPS] += 1
             h_last = solver.step_size
-            step_end_events(solver.t, solver.y, mode, p, model, hist, yd, g_b, dirs_b, rates_b)
+            calls.end_events(solver.t, solver.y, mode, p, ref, hist, yd, g_b, dirs_b, rates_b)
             if not core.needs_dense(solver.t, hist, g_a, side, dirs, rates, g_b, t_eval, cnt):
                 g_a[:] = g_b
                 sides_from(g_b, side)
@@ -81,7 +73,7 @@ def integrate(y0, mode, t0, t_end, p, model, tol, out, hist, dde, y_final, tan=N
                 t = solver.t
                 continue
             dense = solver.dense_output()
-            t_next, mode_next, fs, fside = core.after_step(
+            t_next, mode_next, fs, fside = calls.after(
                 solver.t_old,
                 solver.t,
                 dense.y_old,
@@ -89,7 +81,7 @@ def integrate(y0, mode, t0, t_end, p, model, tol, out, hist, dde, y_final, tan=N
                 dense.F,
                 mode,
                 p,
-                model,
+                ref,
                 hist,
                 dde,
                 ev,

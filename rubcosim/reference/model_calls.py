@@ -18,7 +18,9 @@ import warnings
 from typing import Any
 
 import numba as nb
+from numba.core import types
 from numba.core.errors import NumbaExperimentalFeatureWarning
+from numba.experimental import structref
 from numba.extending import typeof_impl
 
 # numba calls first-class function types experimental; they are what this module is
@@ -93,3 +95,38 @@ def rk_step(t, y, f, h, mode, p, model, yd, K, y_new, f_new, ytmp):
 def dense_output(t_old, h, y_old, y_new, f_new, mode, p, model, yd, K, F, ytmp):
     """The dense output of a delay-free model's step (:func:`.model_kernels.dense_c`)."""
     model[M_DENSE](t_old, h, y_old, y_new, f_new, mode, p, model[M_IP], yd, K, F, ytmp)
+
+
+# ------------------------------------------------- the model for many calls from Python
+@structref.register
+class ModelRefType(types.StructRef):
+    def preprocess_fields(self, fields: Any) -> tuple:
+        return tuple((name, types.unliteral(typ)) for name, typ in fields)
+
+
+class ModelRef(structref.StructRefProxy):
+    """The model tuple behind one reference, for Python code that calls compiled code
+    with it many times (the ``accurate`` engine, at every Runge-Kutta stage): passing the
+    tuple makes numba look up each C function's address at every call (some 80 us for the
+    seven), passing this a pointer.  :func:`as_ref` makes one, :func:`unpack` gives the
+    tuple back in compiled code."""
+
+
+structref.define_proxy(ModelRef, ModelRefType, ["ip", "rhs", "events", "apply", "outputs",
+                                                "step", "dense"])  # fmt: skip
+
+
+@nb.njit(cache=True)
+def _new_ref(ip, rhs, events, apply, outputs, step, dense):
+    return ModelRef(ip, rhs, events, apply, outputs, step, dense)
+
+
+def as_ref(model: tuple) -> ModelRef:
+    """A model tuple (:func:`.specialize.compiled_model`) behind one reference."""
+    return _new_ref(*model)
+
+
+@nb.njit(cache=True, inline="always")
+def unpack(ref):
+    """The model tuple of a :class:`ModelRef`."""
+    return (ref.ip, ref.rhs, ref.events, ref.apply, ref.outputs, ref.step, ref.dense)
