@@ -71,6 +71,7 @@ def profile(scenario: str, engines: list[str], unpatched: bool) -> dict:
     function (s, largest first)."""
     with tempfile.TemporaryDirectory() as cache:
         env = {**os.environ, "NUMBA_CACHE_DIR": cache, "RUBCOSIM_QUIET_COMPILE": "1"}
+        env["RUBCOSIM_COMPILE_AHEAD"] = "0"  # every compile in this process, none in a helper
         arg = json.dumps({"scenario": scenario, "engines": engines, "unpatched": unpatched})
         out = subprocess.run(
             [sys.executable, "-c", _CHILD, arg], env=env, capture_output=True, text=True

@@ -23,7 +23,8 @@ DELAY_S = 2.0  # a compilation shorter than this gets no timer
 _state = threading.local()
 
 
-def _quiet() -> bool:
+def quiet() -> bool:
+    """Whether compile notices are off (``RUBCOSIM_QUIET_COMPILE=1``)."""
     return os.environ.get("RUBCOSIM_QUIET_COMPILE") == "1"
 
 
@@ -47,7 +48,7 @@ class _Listener:
         self.started = time.perf_counter()
         if self.compiled == 0.0:
             later = "later runs load it from the cache"
-            _write(f"rubcosim: compiling {self.what} (first use; {later})")
+            write_line(f"rubcosim: compiling {self.what} (first use; {later})")
         if sys.stderr.isatty():
             self._stop = threading.Event()
             self._timer = threading.Thread(target=self._tick, daemon=True)
@@ -72,7 +73,8 @@ class _Listener:
                 sys.stderr.flush()
 
 
-def _write(line: str) -> None:
+def write_line(line: str) -> None:
+    """One notice line on stderr."""
     sys.stderr.write(line + "\n")
     sys.stderr.flush()
 
@@ -80,7 +82,7 @@ def _write(line: str) -> None:
 @contextmanager
 def announce(what: str) -> Iterator[None]:
     """Within the block, a numba compilation is announced as compiling ``what``."""
-    if _quiet() or getattr(_state, "active", False):
+    if quiet() or getattr(_state, "active", False):
         yield  # an enclosing block already announces (or nothing is said)
         return
     try:
@@ -107,12 +109,12 @@ def announce(what: str) -> Iterator[None]:
     finally:
         _state.active = False
         if listener.compiled > 0.0:
-            _write(f"rubcosim: compiled {what} in {listener.compiled:.1f} s")
+            write_line(f"rubcosim: compiled {what} in {listener.compiled:.1f} s")
 
 
-# Loading C functions from numba's cache takes some tens of milliseconds; compiling
-# them, seconds.
-SLOW_S = 0.5
+# Loading C functions from numba's cache takes tens of milliseconds (0.6 s seen on a busy
+# machine); compiling them, seconds.
+SLOW_S = 1.5
 
 
 @contextmanager
@@ -120,7 +122,7 @@ def announce_when_slow(what: str) -> Iterator[None]:
     """:func:`announce` for code that compiles without numba's compile events (C
     functions, ``numba.cfunc``, compile as their module is imported): the first line
     comes once the block has run :data:`SLOW_S`, which loading from the cache does not."""
-    if _quiet() or getattr(_state, "active", False):
+    if quiet() or getattr(_state, "active", False):
         yield
         return
     started = time.perf_counter()
@@ -128,7 +130,7 @@ def announce_when_slow(what: str) -> Iterator[None]:
 
     def first_line() -> None:
         said.set()
-        _write(f"rubcosim: compiling {what} (first use; later runs load it from the cache)")
+        write_line(f"rubcosim: compiling {what} (first use; later runs load it from the cache)")
 
     timer = threading.Timer(SLOW_S, first_line)
     timer.daemon = True
@@ -141,4 +143,4 @@ def announce_when_slow(what: str) -> Iterator[None]:
         timer.cancel()
         timer.join()
         if said.is_set():
-            _write(f"rubcosim: compiled {what} in {time.perf_counter() - started:.1f} s")
+            write_line(f"rubcosim: compiled {what} in {time.perf_counter() - started:.1f} s")

@@ -13,6 +13,7 @@ once.
 
 from __future__ import annotations
 
+import os
 import time
 from concurrent.futures import ProcessPoolExecutor
 from functools import partial
@@ -125,8 +126,17 @@ def warm_up(workers: int = 2) -> list[tuple[str, float]]:
     phases = jobs()
     if workers <= 1:
         return [_timed(job) for phase in phases for job in phase]
-    with ProcessPoolExecutor(max_workers=workers) as pool:
-        return [done for phase in phases for done in pool.map(_timed, phase)]
+    # the workers keep the cores busy: no helper process of their own (compile_ahead)
+    ahead = os.environ.get("RUBCOSIM_COMPILE_AHEAD")
+    os.environ["RUBCOSIM_COMPILE_AHEAD"] = "0"
+    try:
+        with ProcessPoolExecutor(max_workers=workers) as pool:
+            return [done for phase in phases for done in pool.map(_timed, phase)]
+    finally:
+        if ahead is None:
+            os.environ.pop("RUBCOSIM_COMPILE_AHEAD")
+        else:
+            os.environ["RUBCOSIM_COMPILE_AHEAD"] = ahead
 
 
 def _timed(job) -> tuple[str, float]:

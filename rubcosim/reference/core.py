@@ -133,10 +133,10 @@ def needs_dense(t_b, hist, g_a, side, dirs, rates, g_b, t_eval, cnt):
     return event_candidate(g_a, side, dirs, rates, g_b)
 
 
-# inlined (with find_event) into the fast engine's loop: a call passed some twenty
-# arrays, field by field, twice per impact; inlined, the rotor runs ~15 % faster, and a
-# cold compile takes ~3 s longer (the event functions themselves stay calls)
-@njit(borrows=True, inline="always")
+# a call from the fast engine's loop, made only on a step that records or may hold an
+# event: inlined into the loop (as it was until 2026-11-28) it cost 4.4 s of the
+# engine's 23 s cold compile (benchmarks/profile_compile.py)
+@njit(borrows=True)
 def after_step(t_a, t_b, y_old, y_b, F, mode, p, model, hist, dde, ev, out, y_out, work):
     """Process an accepted step [t_a, t_b] with dense output F; ``ev = (g_a, side,
     dirs, rates, g_b)`` holds the event functions at t_a (with their sides,

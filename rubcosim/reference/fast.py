@@ -24,6 +24,7 @@ from rubcosim.components.dop853 import (
     next_step,
     rk_stages,
 )
+from rubcosim.components.jit import njit
 from rubcosim.components.kernels import all_finite
 
 from .core import (
@@ -104,7 +105,10 @@ def _full_rhs_in(ctx, t, y, dy):
     full_rhs(t, y, mode, p, model, hist, yd, dy)
 
 
-@nb.njit(cache=True, inline="always")
+# calls, not inlined: compiled apart for each variant, where ``hist is None`` is known and
+# the delay path is pruned (inlined, both paths went into the delay-free engine's IR);
+# LLVM inlines the delay-free body, a pointer call, into the loop all the same
+@njit(borrows=True)
 def rk_step(t, y, f, h, mode, p, model, hist, yd, K, y_new, f_new, ytmp, cnt):
     """One DOP853 step of size ``h`` from ``(t, y)`` with ``f`` the slope there: the stages
     into ``K`` (a view that is not reference-counted: its rows are written in place),
@@ -119,7 +123,7 @@ def rk_step(t, y, f, h, mode, p, model, hist, yd, K, y_new, f_new, ytmp, cnt):
     cnt[C_RHS] += N_STAGES
 
 
-@nb.njit(cache=True, inline="always")
+@njit(borrows=True)
 def dense_coefficients(t_old, h, y_old, y_new, f_new, K, mode, p, model, hist, yd, F, ytmp, cnt):
     """DOP853 dense output (scipy's F layout) for the step just taken; ``K`` a view that is
     not reference-counted (its rows are written in place).  Without a delay, one call
@@ -202,7 +206,9 @@ def integrate(y0, mode, t0, t_end, p, model, tol, out, hist, dde, y_final, tan):
     cnt[C_EVAL] = record_point(t, y, mode, p, model, hist, t_eval, np.int64(0), rec, yd, obuf)
     while t < t_end and cnt[C_STATUS] == STATUS_OK:
         bound = t_end
-        if uses_history(p, model):  # next_breakpoint's own first test: without a delay, no call
+        # Without a delay (hist None) the branch is pruned at compile time: the
+        # breakpoint machinery is not compiled into the delay-free variant at all.
+        if hist is not None and uses_history(p, model):
             bound = next_breakpoint(t, t_end, p, model, queue, qmeta)
         start_sides(
             t, y, mode, p, model, hist, g_a, dirs, rates, side, yd, forced_slot, forced_side
@@ -289,6 +295,9 @@ def integrate(y0, mode, t0, t_end, p, model, tol, out, hist, dde, y_final, tan):
                 forced_slot, forced_side = fs, fside
                 break
             f, f_new = f_new, f
-    y_final[:] = y
+    # a loop, not y_final[:] = y: a slice copy compiles numba's shape-mismatch message
+    # (string formatting, seconds of a cold compile) for a mismatch that cannot happen
+    for i in range(n):
+        y_final[i] = y[i]
     keep_alive(owners)
     return t, mode

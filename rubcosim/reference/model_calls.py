@@ -48,6 +48,21 @@ def _typeof_model(val: ModelTuple, c: Any) -> Any:
     return _MODEL_TYPE[0]
 
 
+# The kernels' signatures, the contract between the machinery and a model's C functions
+# (:mod:`.model_kernels`): every array C-contiguous.
+_F, _I = types.float64, types.int64
+_A, _IA = types.float64[::1], types.int64[::1]
+# (t, y, yd, mode, p, ip, ...): yd the delayed disc state, p and ip the system's arrays
+RHS = types.void(_F, _A, _A, _I, _A, _IA, _A)  # ..., dy
+EVENTS = types.void(_F, _A, _A, _I, _A, _IA, _A, _IA, _IA)  # ..., g, dirs, rates
+APPLY = types.int64(_I, _F, _A, _A, _I, _A, _IA)  # (k, t, y, yd, mode, p, ip)
+OUTPUTS = types.void(_F, _A, _A, _I, _A, _IA, _A)  # ..., out
+# (t, y, f, h, mode, p, ip, yd, K, y_new, f_new, ytmp): a DOP853 step without a delay
+_M = types.float64[:, ::1]
+STEP = types.void(_F, _A, _A, _F, _I, _A, _IA, _A, _M, _A, _A, _A)
+# (t_old, h, y_old, y_new, f_new, mode, p, ip, yd, K, F, ytmp): its dense output
+DENSE = types.void(_F, _F, _A, _A, _A, _I, _A, _IA, _A, _M, _M, _A)
+
 # an event map's (new mode, kind) travels as new mode * KIND_BASE + kind (every kind is
 # below it): a C function returns one scalar
 KIND_BASE = 64

@@ -18,25 +18,11 @@ scalar): :func:`pack_event`, unpacked by :func:`.model_calls.apply_event`.
 from __future__ import annotations
 
 import numba as nb
-from numba import types
 
 from rubcosim.components.dop853 import dense_stages, rk_stages
 
-from .model_calls import KIND_BASE
+from .model_calls import APPLY, DENSE, EVENTS, KIND_BASE, OUTPUTS, RHS, STEP
 from .system import apply_event, events, outputs, rhs
-
-_F, _I = types.float64, types.int64
-_A, _IA = types.float64[::1], types.int64[::1]
-# (t, y, yd, mode, p, ip, ...): yd the delayed disc state, p and ip the system's arrays
-RHS = types.void(_F, _A, _A, _I, _A, _IA, _A)  # ..., dy
-EVENTS = types.void(_F, _A, _A, _I, _A, _IA, _A, _IA, _IA)  # ..., g, dirs, rates
-APPLY = types.int64(_I, _F, _A, _A, _I, _A, _IA)  # (k, t, y, yd, mode, p, ip)
-OUTPUTS = types.void(_F, _A, _A, _I, _A, _IA, _A)  # ..., out
-# (t, y, f, h, mode, p, ip, yd, K, y_new, f_new, ytmp): a DOP853 step without a delay
-_M = types.float64[:, ::1]
-STEP = types.void(_F, _A, _A, _F, _I, _A, _IA, _A, _M, _A, _A, _A)
-# (t_old, h, y_old, y_new, f_new, mode, p, ip, yd, K, F, ytmp): its dense output
-DENSE = types.void(_F, _F, _A, _A, _A, _I, _A, _IA, _A, _M, _M, _A)
 
 
 @nb.njit(cache=True, inline="always")

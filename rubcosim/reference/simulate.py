@@ -13,6 +13,7 @@ from rubcosim.compile_notice import announce
 from rubcosim.progress import watch
 from rubcosim.timegrid import output_grid
 
+from . import compile_ahead
 from .assemble import System
 from .core import (
     C_EVAL,
@@ -115,29 +116,40 @@ def _return_event_log(log: tuple[np.ndarray, ...]) -> None:
 def _warm_up(
     system: System, engine: str, t_start: float, rtol: float, atol: float, max_step: float
 ) -> float:
-    """Load (or compile) the engine once per process, outside the timed run."""
+    """Load (or compile) the engine and the model's kernels once per process, outside the
+    timed run.  An engine not compiled yet compiles in a second process
+    (:mod:`.compile_ahead`) while this one compiles the model's kernels."""
     key = (engine, model_key(system.ip), system.has_delay)
     if key in _WARM:
         return 0.0
     _WARM.add(key)
     t0 = time.perf_counter()
-    tiny = 1e-6 * system.forcing_period
-    compiled_model(system)  # says so if it compiles
+    helper = compile_ahead.start(system, engine)
+    model = compiled_model(system)  # says so if it compiles
+    if helper is not None:
+        helper.finish()
     delay = "with a delay" if system.has_delay else "without a delay"
     with announce(f"the {engine} engine for every model {delay}"):
-        simulate(
-            system,
-            t_start + tiny,
-            t_start=t_start,
-            t_eval=np.array([t_start + tiny]),
-            engine=engine,
-            rtol=rtol,
-            atol=atol,
-            max_events=8,
-            max_step=max_step,
-            history_capacity=16,
-        )
+        tiny_run(system, model, engine, t_start, rtol, atol, max_step)
+    compile_ahead.mark_compiled(engine, system.has_delay)
     return time.perf_counter() - t0
+
+
+def tiny_run(
+    system: System,
+    model: tuple,
+    engine: str,
+    t_start: float,
+    rtol: float,
+    atol: float,
+    max_step: float,
+) -> None:
+    """A run of a millionth of a forcing period: what compiles (or loads) the engine's
+    variant for this model's type."""
+    tiny = 1e-6 * system.forcing_period
+    t_eval = np.array([t_start + tiny])
+    atol_arr = atol * system.state_scale
+    _run(system, model, engine, t_start, t_start + tiny, t_eval, (rtol, atol_arr, max_step), 8, 16)
 
 
 def simulate(
@@ -178,11 +190,32 @@ def simulate(
         t_eval = output_grid(t_start, t_end, step)
     t_eval = np.ascontiguousarray(t_eval, dtype=float)
     max_step = min(max_step, system.min_delay())
-    atol_arr = atol_rel * system.state_scale
+    warmup = _warm_up(system, engine, t_start, rtol, atol_rel, max_step)
+    model = compiled_model(system)  # loaded by the warm-up
+    tol = (rtol, atol_rel * system.state_scale, max_step)
+    result = _run(
+        system, model, engine, t_start, t_end, t_eval, tol, max_events, history_capacity, progress
+    )
+    result.warmup_s = warmup
+    return result
+
+
+def _run(
+    system: System,
+    model: tuple,
+    engine: str,
+    t_start: float,
+    t_end: float,
+    t_eval: np.ndarray,
+    tol: tuple[float, np.ndarray, float],
+    max_events: int,
+    history_capacity: int,
+    progress: bool = False,
+) -> Result:
+    """One run of ``engine`` on ``system`` with the model tuple ``model``;
+    ``tol = (rtol, atol array, max_step)``."""
     integrate = importlib.import_module(ENGINES[engine]).integrate
     p_vals = np.array(system.p, dtype=float)
-    model = compiled_model(system)
-    warmup = _warm_up(system, engine, t_start, rtol, atol_rel, max_step)
     n = system.n_state
     capacity = history_capacity
     evlog = _take_event_log(max_events, n)  # a retry below overwrites it from the start
@@ -213,7 +246,7 @@ def simulate(
                 t_end,
                 p_vals,
                 model,
-                (rtol, atol_arr, max_step),
+                tol,
                 (t_eval, rec, evlog, cnt),
                 hist,
                 (queue, qmeta),
@@ -255,5 +288,4 @@ def simulate(
             "delay_breakpoints_dropped": int(qmeta[Q_DROPPED]),
         },
         wall_time_s=wall,
-        warmup_s=warmup,
     )
