@@ -11,7 +11,15 @@ counters come back as the Python master's :class:`.cosim_result.CosimResult`.
 The algorithm, the decisions and the counters are the Python master's
 (``tests/test_flat_master.py`` compares them on every scenario it can run);
 only the per-step cost differs.  ``cosim.master`` picks: ``auto`` (compiled when
-possible), ``compiled`` (an error naming what is not), ``python``.
+possible and already compiled, see below), ``compiled`` (an error naming what is not),
+``python``.
+
+The compiled loop takes minutes to compile, once for every model (it holds every unit
+type), and a short co-simulation, such as ``make run``'s check of the flagship, runs
+in seconds on the Python master with the same results.  So ``auto`` takes the compiled
+loop only once it is in numba's cache (:func:`flat_ready`: a run of it, or
+``rubcosim warm-up``, records it there) and otherwise runs the Python master and says
+so on one line.
 """
 
 from __future__ import annotations
@@ -22,6 +30,7 @@ from typing import Any
 
 import numpy as np
 
+from rubcosim.compile_notice import is_marked, mark, quiet, write_line
 from rubcosim.components import flat_units as fu
 from rubcosim.components.delay_history import ROW
 from rubcosim.components.flat_hybrid import MAX_MODES, output_map
@@ -34,7 +43,23 @@ from .flat_loop import EVENT_ROOM, run_loop, start
 from .protocols import ElasticContact, RigidContact
 
 CHUNK = 4000  # loop passes between progress updates
+COMPILED = "cosim-compiled-master"  # the marker of the compiled loop in numba's cache
 HISTORY_ROWS = 4096  # a controller's history buffer to begin with (it grows when full)
+
+
+def flat_ready(setting: str) -> bool:
+    """Whether a master that can run compiled does, under ``cosim.master = setting``:
+    ``compiled`` always; ``auto`` once the compiled loop is in numba's cache (a process
+    ran it with this cache), else it says on one line that the Python master runs."""
+    if setting == "compiled" or is_marked(COMPILED):
+        return True
+    if not quiet():
+        write_line(
+            "rubcosim: the co-simulation's compiled master is not in the cache yet: this run "
+            "takes the Python master (the same results, slower per step); 'rubcosim "
+            'warm-up\' or cosim.master = "compiled" compiles it once (minutes)'
+        )
+    return False
 
 
 def flat_unsupported(master: Any) -> str | None:
@@ -273,6 +298,7 @@ def run_flat(
                 _, ref = L.refs(G, S)
             elif code == L.DONE:
                 break
+    mark(COMPILED)
     n = int(S.ms[L.MS_K_OUT])
     n_ev = int(S.ms[L.MS_N_EVENTS])
     names = list(master.units)

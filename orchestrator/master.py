@@ -48,7 +48,7 @@ from .coupling_norms import CouplingNorms
 from .event_steps import EventSteps
 from .extrapolation import evaluate, polynomial
 from .flat_layout import CHECKPOINT_EVERY, STALL_STEPS
-from .flat_master import flat_unsupported, run_flat
+from .flat_master import flat_ready, flat_unsupported, run_flat
 from .kink_steps import KinkSteps
 from .ordering import evaluation_order
 from .protocols import EventProtocol
@@ -229,7 +229,7 @@ class Master(CouplingNorms, EventSteps, KinkSteps, Rollback):
         of seconds."""
         if self.settings.master != "python":
             why = flat_unsupported(self)
-            if why is None:
+            if why is None and flat_ready(self.settings.master):
                 return run_flat(self, t_start, t_end, output_times, list(record), progress)
             if self.settings.master == "compiled":
                 raise CosimError(f"cosim.master = 'compiled': {why}; use 'auto' or 'python'")

@@ -17,6 +17,7 @@ import threading
 import time
 from collections.abc import Iterator
 from contextlib import contextmanager
+from pathlib import Path
 from typing import Any
 
 DELAY_S = 2.0  # a compilation shorter than this gets no timer
@@ -144,3 +145,28 @@ def announce_when_slow(what: str) -> Iterator[None]:
         timer.join()
         if said.is_set():
             write_line(f"rubcosim: compiled {what} in {time.perf_counter() - started:.1f} s")
+
+
+def _marker(name: str) -> Path | None:
+    base = os.environ.get("NUMBA_CACHE_DIR")
+    return Path(base) / "compiled" / f"{name}.done" if base else None
+
+
+def is_marked(name: str) -> bool:
+    """Whether a process recorded (:func:`mark`) that ``name`` is in this numba cache
+    (the cache directory is keyed by the sources: an edit empties it of markers too)."""
+    marker = _marker(name)
+    return marker is not None and marker.is_file()
+
+
+def mark(name: str) -> None:
+    """Record that ``name`` (an engine variant, the co-simulation's compiled master) is
+    compiled in this numba cache: a later process can count on loading it."""
+    marker = _marker(name)
+    if marker is None or marker.is_file():
+        return
+    try:
+        marker.parent.mkdir(parents=True, exist_ok=True)
+        marker.touch()
+    except OSError:  # a read-only cache: no marker
+        pass

@@ -91,9 +91,10 @@ def _units() -> str:
     the master's compiled loop and the controller's kernels."""
     from . import api
 
-    api.cosimulate("jeffcott_rigid_stator", "direct", set={"sim.t_end": 0.002})
-    api.cosimulate("jeffcott_elastic_casing", "direct", set={"sim.t_end": 0.002})
-    api.cosimulate("impact_duffing", "direct", set={"sim.t_end": 5.0})
+    compiled = {"cosim.master": "compiled"}  # auto would take the Python master until then
+    api.cosimulate("jeffcott_rigid_stator", "direct", set={"sim.t_end": 0.002, **compiled})
+    api.cosimulate("jeffcott_elastic_casing", "direct", set={"sim.t_end": 0.002, **compiled})
+    api.cosimulate("impact_duffing", "direct", set={"sim.t_end": 5.0, **compiled})
     _controller_kernels()
     return "the co-simulation's units and master"
 

@@ -23,35 +23,23 @@ import pickle
 import subprocess
 import sys
 import time
-from pathlib import Path
 from typing import Any
 
-from rubcosim.compile_notice import quiet, write_line
+from rubcosim.compile_notice import is_marked, mark, quiet, write_line
 
 
-def _marker(engine: str, has_delay: bool) -> Path | None:
-    base = os.environ.get("NUMBA_CACHE_DIR")
-    if not base:
-        return None
-    return Path(base) / "engines" / f"{engine}-{'delay' if has_delay else 'no-delay'}.compiled"
+def _name(engine: str, has_delay: bool) -> str:
+    return f"{engine}-engine-{'delay' if has_delay else 'no-delay'}"
 
 
 def is_compiled(engine: str, has_delay: bool) -> bool:
     """Whether a process has compiled (or loaded) this engine variant with this cache."""
-    marker = _marker(engine, has_delay)
-    return marker is not None and marker.is_file()
+    return is_marked(_name(engine, has_delay))
 
 
 def mark_compiled(engine: str, has_delay: bool) -> None:
     """Record that this engine variant is in the cache (after its first run)."""
-    marker = _marker(engine, has_delay)
-    if marker is None or marker.is_file():
-        return
-    try:
-        marker.parent.mkdir(parents=True, exist_ok=True)
-        marker.touch()
-    except OSError:  # a read-only cache: no marker, a helper may start again next time
-        pass
+    mark(_name(engine, has_delay))
 
 
 def _enabled() -> bool:
