@@ -31,7 +31,7 @@ from rubcosim import __version__, components
 from rubcosim.components.registry import REGISTRY
 from rubcosim.components.unit import Unit
 
-from .native import install_loader
+from .native import LOADER_SOURCE, install_loader
 
 COMPONENTS_DIR = Path(components.__file__).resolve().parent
 ADAPTER = Path(__file__).resolve().parent / "fmi_slave.py"
@@ -90,9 +90,10 @@ def bundled_sources() -> list[Path]:
 
 
 def source_digest() -> str:
-    """Hash of the version and every bundled source: names the bundle and seeds GUIDs."""
+    """Hash of the version, every bundled source and the loader shim's C source (compiled
+    into every FMU): names the bundle and the FMU cache, and seeds GUIDs."""
     digest = hashlib.sha256(__version__.encode())
-    for path in bundled_sources():
+    for path in (*bundled_sources(), LOADER_SOURCE):
         digest.update(path.name.encode())
         digest.update(path.read_bytes())
     return digest.hexdigest()[:12]

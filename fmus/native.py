@@ -32,12 +32,14 @@ from pathlib import Path
 
 __all__ = [
     "DERIVATIVES_FILE",
+    "VARIABLES_FILE",
     "DERIVATIVE_CARRIER",
     "EXPORT_SUFFIX",
     "LOADER_SOURCE",
     "RUNTIME_FILE",
     "compile_loader",
     "derivative_table",
+    "variable_table",
     "install_loader",
     "model_identifier",
     "python_runtime",
@@ -49,6 +51,10 @@ LOADER_SOURCE = Path(__file__).parent / "loader" / "rubcosim_fmu_loader.c"
 RUNTIME_FILE = "resources/rubcosim_python.txt"
 #: Archive name of the input-derivative table read by the shim.
 DERIVATIVES_FILE = "resources/rubcosim_input_derivatives.txt"
+# every variable's value reference, FMI type and name: the shim refuses a wrongly typed
+# fmi2Get/Set call with fmi2Error (pythonfmu would answer fmi2Fatal and drop the instance)
+VARIABLES_FILE = "resources/rubcosim_variables.txt"
+_TYPE_LETTERS = {"Real": "R", "Integer": "I", "Enumeration": "I", "Boolean": "B", "String": "S"}
 #: Names of the tunable parameters that carry a real input's first and second derivative.
 DERIVATIVE_CARRIER = "{input}_d{order}"
 #: Suffix appended to the model identifier for the original pythonfmu export library.
@@ -188,6 +194,18 @@ def derivative_table(model_description: bytes) -> str:
     return "".join(lines)
 
 
+def variable_table(model_description: bytes) -> str:
+    """``vr type name`` lines, one per scalar variable (type ``R``, ``I``, ``B`` or ``S``;
+    an Enumeration is accessed as an Integer): the shim's type check."""
+    root = ET.fromstring(model_description)
+    lines = []
+    for sv in root.iter("ScalarVariable"):
+        letter = next((_TYPE_LETTERS[t.tag] for t in sv if t.tag in _TYPE_LETTERS), None)
+        if letter is not None:
+            lines.append(f"{int(sv.get('valueReference', '0'))} {letter} {sv.get('name')}\n")
+    return "".join(lines)
+
+
 def install_loader(fmu: Path) -> None:
     """Install the loader shim into a pythonfmu-built FMU, in place.
 
@@ -215,13 +233,15 @@ def install_loader(fmu: Path) -> None:
                 raise ValueError(f"{fmu}: no {shim_name} (not a pythonfmu FMU for linux64?)")
             entries: dict[str, tuple[zipfile.ZipInfo, bytes]] = {}
             for info in src.infolist():
-                skip = info.filename in (shim_name, export_name, RUNTIME_FILE, DERIVATIVES_FILE)
+                ours = (shim_name, export_name, RUNTIME_FILE, DERIVATIVES_FILE, VARIABLES_FILE)
+                skip = info.filename in ours
                 if skip or info.is_dir() or "__pycache__" in info.filename:
                     continue
                 mode = 0o755 if info.filename.startswith("binaries/") else 0o644
                 entries[info.filename] = (_new_info(info.filename, mode), src.read(info))
             export_bytes = src.read(export_info)
-            table = derivative_table(src.read("modelDescription.xml"))
+            description = src.read("modelDescription.xml")
+            table, variables = derivative_table(description), variable_table(description)
 
         entries[export_name] = (_new_info(export_name, 0o755), export_bytes)
         entries[shim_name] = (_new_info(shim_name, 0o755), shim.read_bytes())
@@ -230,6 +250,7 @@ def install_loader(fmu: Path) -> None:
             _runtime_text(python_runtime()).encode(),
         )
         entries[DERIVATIVES_FILE] = (_new_info(DERIVATIVES_FILE, 0o644), table.encode())
+        entries[VARIABLES_FILE] = (_new_info(VARIABLES_FILE, 0o644), variables.encode())
 
         fd, tmp_fmu = tempfile.mkstemp(suffix=".fmu", prefix=f".{fmu.stem}.", dir=fmu.parent)
         os.close(fd)

@@ -396,6 +396,50 @@ def test_a_state_restored_right_after_instantiation_is_where_the_next_step_start
     a.freeInstance()
 
 
+def test_a_wrongly_typed_call_is_refused_with_an_error_and_the_instance_goes_on(built_fmus, capfd):
+    """FMI 2.0: a caller's mistake (fmi2SetReal on an Integer variable, as cofmupy 1.0 sets
+    the rotor's reset_counter; a reference no variable has) is fmi2Error with a logged
+    message, never fmi2Fatal (which pythonfmu answered, dropping the instance): the
+    loader checks the types before pythonfmu sees the call.  The instance then steps on
+    and gives what an instance that never saw the call gives."""
+    from fmpy.fmi1 import FMICallException
+    from fmpy.fmi2 import fmi2Error
+
+    path = built_fmus["RubcosimJeffcottRotor"]
+    runs = []
+    for wrong_calls in (False, True):
+        fmu, vr = _slave(path, f"typed{int(wrong_calls)}")
+        fmu.setReal([vr["eccentricity"]], [5e-5])
+        fmu.setupExperiment(startTime=0.0)
+        fmu.enterInitializationMode()
+        fmu.exitInitializationMode()
+        if wrong_calls:
+            for method, args in (
+                ("setReal", ([vr["reset_counter"]], [1.0])),
+                ("getInteger", ([vr["x"]],)),
+                ("getString", ([vr["x"]],)),
+                ("setBoolean", ([vr["damping"]], [True])),
+                ("getReal", ([10**6],)),
+            ):
+                with pytest.raises(FMICallException) as refused:
+                    getattr(fmu, method)(*args)
+                assert refused.value.status == fmi2Error
+        t, h = 0.0, 0.0025
+        for _ in range(10):
+            fmu.doStep(t, h)
+            t += h
+        runs.append(fmu.getReal([vr["x"], vr["vx"]]))
+        assert fmu.getInteger([vr["reset_counter"]]) == [0]
+        fmu.terminate()
+        fmu.freeInstance()
+    assert runs[0] == runs[1]  # bit for bit
+    err = capfd.readouterr()
+    log = err.out + err.err
+    assert "variable reset_counter (value reference" in log
+    assert "is of type Integer, not Real" in log
+    assert "no variable has value reference 1000000" in log
+
+
 def test_the_readme_lists_every_fmu():
     from pathlib import Path
 

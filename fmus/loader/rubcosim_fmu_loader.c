@@ -108,29 +108,6 @@ typedef struct {
     X(fmi2ExitInitializationMode, (fmi2Component c), (c))                                        \
     X(fmi2Terminate, (fmi2Component c), (c))                                                     \
     X(fmi2Reset, (fmi2Component c), (c))                                                         \
-    X(fmi2GetReal, (fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2Real value[]), \
-      (c, vr, nvr, value))                                                                       \
-    X(fmi2GetInteger,                                                                            \
-      (fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2Integer value[]),         \
-      (c, vr, nvr, value))                                                                       \
-    X(fmi2GetBoolean,                                                                            \
-      (fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2Boolean value[]),         \
-      (c, vr, nvr, value))                                                                       \
-    X(fmi2GetString,                                                                             \
-      (fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2String value[]),          \
-      (c, vr, nvr, value))                                                                       \
-    X(fmi2SetReal,                                                                               \
-      (fmi2Component c, const fmi2ValueReference vr[], size_t nvr, const fmi2Real value[]),      \
-      (c, vr, nvr, value))                                                                       \
-    X(fmi2SetInteger,                                                                            \
-      (fmi2Component c, const fmi2ValueReference vr[], size_t nvr, const fmi2Integer value[]),   \
-      (c, vr, nvr, value))                                                                       \
-    X(fmi2SetBoolean,                                                                            \
-      (fmi2Component c, const fmi2ValueReference vr[], size_t nvr, const fmi2Boolean value[]),   \
-      (c, vr, nvr, value))                                                                       \
-    X(fmi2SetString,                                                                             \
-      (fmi2Component c, const fmi2ValueReference vr[], size_t nvr, const fmi2String value[]),    \
-      (c, vr, nvr, value))                                                                       \
     X(fmi2GetFMUstate, (fmi2Component c, fmi2FMUstate * state), (c, state))                      \
     X(fmi2SetFMUstate, (fmi2Component c, fmi2FMUstate state), (c, state))                        \
     X(fmi2FreeFMUstate, (fmi2Component c, fmi2FMUstate * state), (c, state))                     \
@@ -166,6 +143,19 @@ typedef struct {
     X(fmi2GetStringStatus, (fmi2Component c, const fmi2StatusKind s, fmi2String * value),        \
       (c, s, value))
 
+
+/* The value accessors, with the FMI type of the variables they take: checked against the
+ * model description (see check_types) before they are forwarded. */
+#define RCS_VALUE_FUNCTIONS(X)                                                                   \
+    X(fmi2GetReal, (fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2Real value[]), (c, vr, nvr, value), 'R') \
+    X(fmi2GetInteger, (fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2Integer value[]), (c, vr, nvr, value), 'I') \
+    X(fmi2GetBoolean, (fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2Boolean value[]), (c, vr, nvr, value), 'B') \
+    X(fmi2GetString, (fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2String value[]), (c, vr, nvr, value), 'S') \
+    X(fmi2SetReal, (fmi2Component c, const fmi2ValueReference vr[], size_t nvr, const fmi2Real value[]), (c, vr, nvr, value), 'R') \
+    X(fmi2SetInteger, (fmi2Component c, const fmi2ValueReference vr[], size_t nvr, const fmi2Integer value[]), (c, vr, nvr, value), 'I') \
+    X(fmi2SetBoolean, (fmi2Component c, const fmi2ValueReference vr[], size_t nvr, const fmi2Boolean value[]), (c, vr, nvr, value), 'B') \
+    X(fmi2SetString, (fmi2Component c, const fmi2ValueReference vr[], size_t nvr, const fmi2String value[]), (c, vr, nvr, value), 'S')
+
 typedef const char *(*fmi2GetTypesPlatform_t)(void);
 typedef const char *(*fmi2GetVersion_t)(void);
 typedef fmi2Component (*fmi2Instantiate_t)(fmi2String, fmi2Type, fmi2String, fmi2String,
@@ -174,7 +164,10 @@ typedef fmi2Component (*fmi2Instantiate_t)(fmi2String, fmi2Type, fmi2String, fmi
 typedef void (*fmi2FreeInstance_t)(fmi2Component);
 
 #define RCS_TYPEDEF(name, params, args) typedef fmi2Status(*name##_t) params;
+#define RCS_TYPEDEF_V(name, params, args, type) RCS_TYPEDEF(name, params, args)
 RCS_STATUS_FUNCTIONS(RCS_TYPEDEF)
+RCS_VALUE_FUNCTIONS(RCS_TYPEDEF_V)
+#undef RCS_TYPEDEF_V
 #undef RCS_TYPEDEF
 
 /* Function table of the export library; filled once, under g_lock, before the first instance. */
@@ -184,7 +177,10 @@ static struct {
     fmi2Instantiate_t fmi2Instantiate;
     fmi2FreeInstance_t fmi2FreeInstance;
 #define RCS_MEMBER(name, params, args) name##_t name;
+#define RCS_MEMBER_V(name, params, args, type) name##_t name;
     RCS_STATUS_FUNCTIONS(RCS_MEMBER)
+    RCS_VALUE_FUNCTIONS(RCS_MEMBER_V)
+#undef RCS_MEMBER_V
 #undef RCS_MEMBER
 } g_api;
 
@@ -863,7 +859,10 @@ static int load_export_library(const char *resources, msgbuf *err)
     RCS_RESOLVE(fmi2Instantiate);
     RCS_RESOLVE(fmi2FreeInstance);
 #define RCS_RESOLVE_X(name, params, args) RCS_RESOLVE(name);
+#define RCS_RESOLVE_V(name, params, args, type) RCS_RESOLVE(name);
     RCS_STATUS_FUNCTIONS(RCS_RESOLVE_X)
+    RCS_VALUE_FUNCTIONS(RCS_RESOLVE_V)
+#undef RCS_RESOLVE_V
 #undef RCS_RESOLVE_X
 #undef RCS_RESOLVE
     if (missing) {
@@ -968,6 +967,138 @@ RCS_EXPORT fmi2Status fmi2SetRealInputDerivatives(fmi2Component c, const fmi2Val
     return fmi2OK;
 }
 
+
+/* ------------------------------------------------------------------------------------------ */
+/* Variable types: a wrongly typed call is refused here with fmi2Error                         */
+/* ------------------------------------------------------------------------------------------ */
+
+/* pythonfmu turns every Python exception into fmi2Fatal and drops the instance's Python
+ * object, so a host that calls fmi2SetReal on an Integer variable (a caller's mistake, which
+ * FMI 2.0 answers with fmi2Error) lost every instance of the model.  The build lists each
+ * variable in <resources>/rubcosim_variables.txt, one "vr type name" per line (type R, I, B or
+ * S), and the value accessors check their references against it before forwarding: a wrong
+ * type or an unknown reference gets fmi2Error with a logged message, and the instance stays
+ * usable.  Filled once, under g_lock; an FMU without the file is not checked. */
+#define RCS_MAX_VR 65536
+static char *g_vtype;       /* type letter by value reference, 0 where none */
+static char **g_vname;      /* name by value reference */
+static size_t g_n_vtype;    /* entries in both */
+
+static void read_variable_table(const char *resources)
+{
+    if (resources == NULL || g_vtype != NULL) return;
+    char path[PATH_MAX];
+    if (snprintf(path, sizeof path, "%s/rubcosim_variables.txt", resources) >= (int)sizeof path)
+        return;
+    FILE *f = fopen(path, "r");
+    if (f == NULL) return;
+    char *type = calloc(RCS_MAX_VR, 1);
+    char **name = calloc(RCS_MAX_VR, sizeof(char *));
+    size_t n = 0;
+    unsigned long vr;
+    char letter, text[256];
+    while (type != NULL && name != NULL && fscanf(f, "%lu %c %255s", &vr, &letter, text) == 3) {
+        if (vr >= RCS_MAX_VR) continue;
+        type[vr] = letter;
+        free(name[vr]);
+        name[vr] = strdup(text);
+        if (vr + 1 > n) n = vr + 1;
+    }
+    fclose(f);
+    if (type == NULL || name == NULL) {
+        free(type);
+        free(name);
+        return;
+    }
+    g_vname = name;
+    g_n_vtype = n;
+    g_vtype = type;
+}
+
+/* The host's logger and instance name of each live instance, for the messages above. */
+#define RCS_MAX_INSTANCES 1024
+static struct {
+    fmi2Component c;
+    const fmi2CallbackFunctions *functions;
+    char *name;
+} g_inst[RCS_MAX_INSTANCES];
+
+static void remember_instance(fmi2Component c, const fmi2CallbackFunctions *functions,
+                              fmi2String name)
+{
+    pthread_mutex_lock(&g_lock);
+    for (size_t i = 0; i < RCS_MAX_INSTANCES; i++) {
+        if (g_inst[i].c == NULL) {
+            g_inst[i].c = c;
+            g_inst[i].functions = functions;
+            g_inst[i].name = strdup(name ? name : "");
+            break;
+        }
+    }
+    pthread_mutex_unlock(&g_lock);
+}
+
+static void forget_instance(fmi2Component c)
+{
+    pthread_mutex_lock(&g_lock);
+    for (size_t i = 0; i < RCS_MAX_INSTANCES; i++) {
+        if (g_inst[i].c == c) {
+            free(g_inst[i].name);
+            g_inst[i].c = NULL;
+            g_inst[i].name = NULL;
+            break;
+        }
+    }
+    pthread_mutex_unlock(&g_lock);
+}
+
+static const char *type_name(char letter)
+{
+    switch (letter) {
+    case 'R': return "Real";
+    case 'I': return "Integer";
+    case 'B': return "Boolean";
+    case 'S': return "String";
+    default: return "unknown";
+    }
+}
+
+/* fmi2OK when every reference names a variable of type `want`; else the refusal, logged. */
+static fmi2Status check_types(fmi2Component c, const char *function, const fmi2ValueReference vr[],
+                              size_t nvr, char want)
+{
+    if (g_vtype == NULL) return fmi2OK;
+    for (size_t i = 0; i < nvr; i++) {
+        char have = vr[i] < g_n_vtype ? g_vtype[vr[i]] : 0;
+        if (have == want) continue;
+        char text[512];
+        if (have == 0)
+            snprintf(text, sizeof text, "%s: no variable has value reference %lu; call refused",
+                     function, (unsigned long)vr[i]);
+        else
+            snprintf(text, sizeof text,
+                     "%s: variable %s (value reference %lu) is of type %s, not %s; call refused, "
+                     "nothing set or read (use fmi2%s%s)",
+                     function, g_vname[vr[i]] ? g_vname[vr[i]] : "?", (unsigned long)vr[i],
+                     type_name(have), type_name(want), strncmp(function, "fmi2Set", 7) ? "Get" : "Set",
+                     type_name(have));
+        const fmi2CallbackFunctions *functions = NULL;
+        char name[256] = "";
+        pthread_mutex_lock(&g_lock);
+        for (size_t k = 0; k < RCS_MAX_INSTANCES; k++) {
+            if (g_inst[k].c == c) {
+                functions = g_inst[k].functions;
+                snprintf(name, sizeof name, "%s", g_inst[k].name ? g_inst[k].name : "");
+                break;
+            }
+        }
+        pthread_mutex_unlock(&g_lock); /* the host's logger runs outside the lock */
+        log_message(functions, name, fmi2Error, "logStatusError", text);
+        return fmi2Error;
+    }
+    return fmi2OK;
+}
+
 RCS_EXPORT fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType,
                                          fmi2String fmuGUID, fmi2String fmuResourceLocation,
                                          const fmi2CallbackFunctions *functions,
@@ -987,6 +1118,7 @@ RCS_EXPORT fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuTy
                  load_export_library(resources, &err) == 0;
         if (ok) {
             read_derivative_table(resources);
+            read_variable_table(resources);
             g_ready = 1;
             if (info.len > 0 && (warn || loggingOn))
                 log_message(functions, instanceName, warn ? fmi2Warning : fmi2OK,
@@ -1000,6 +1132,7 @@ RCS_EXPORT fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuTy
     if (!ready) return NULL;
     fmi2Component c = g_api.fmi2Instantiate(instanceName, fmuType, fmuGUID, fmuResourceLocation,
                                             functions, visible, loggingOn);
+    if (c != NULL) remember_instance(c, functions, instanceName);
     if (c == NULL && !loggingOn) {
         /* pythonfmu reports its Python exceptions only when logging is on. */
         char text[sizeof g_python_desc + 512];
@@ -1016,6 +1149,7 @@ RCS_EXPORT fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuTy
 
 RCS_EXPORT void fmi2FreeInstance(fmi2Component c)
 {
+    if (c != NULL) forget_instance(c);
     if (c != NULL && g_api.fmi2FreeInstance != NULL) g_api.fmi2FreeInstance(c);
 }
 
@@ -1027,3 +1161,13 @@ RCS_EXPORT void fmi2FreeInstance(fmi2Component c)
     }
 RCS_STATUS_FUNCTIONS(RCS_FORWARD)
 #undef RCS_FORWARD
+
+#define RCS_FORWARD_CHECKED(name, params, args, type)                                            \
+    RCS_EXPORT fmi2Status name params                                                            \
+    {                                                                                            \
+        if (g_api.name == NULL) return fmi2Error;                                                \
+        if (check_types(c, #name, vr, nvr, type) != fmi2OK) return fmi2Error;                    \
+        return g_api.name args;                                                                  \
+    }
+RCS_VALUE_FUNCTIONS(RCS_FORWARD_CHECKED)
+#undef RCS_FORWARD_CHECKED
