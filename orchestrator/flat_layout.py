@@ -36,6 +36,7 @@ FlatGraph = namedtuple(
         "in_order", "order", "eval_order", "c_input", "src0", "src_unit", "src_out", "c_gs",
         "conn0", "conns", "nominal", "bound", "pr_kind", "pr_stator", "pr_rotor", "pr_f",
         "rec_unit", "rec_out", "out_times", "model", "iset", "fset", "omap", "mval", "ctl",
+        "calls",
     ],
 )  # fmt: skip
 

@@ -14,9 +14,11 @@ only the per-step cost differs.  ``cosim.master`` picks: ``auto`` (compiled when
 possible and already compiled, see below), ``compiled`` (an error naming what is not),
 ``python``.
 
-The compiled loop takes minutes to compile, once for every model (it holds every unit
-type), and a short co-simulation, such as ``make run``'s check of the flagship, runs
-in seconds on the Python master with the same results.  So ``auto`` takes the compiled
+The loop steps the units and reads their outputs through C functions
+(:mod:`rubcosim.components.flat_calls`), so the units' code compiles once, not once per
+caller.  It still takes minutes to compile, once for every model (it holds every unit
+type), and a short co-simulation, such as ``make run``'s check of the flagship, runs in
+seconds on the Python master with the same results.  So ``auto`` takes the compiled
 loop only once it is in numba's cache (:func:`flat_ready`: a run of it, or
 ``rubcosim warm-up``, records it there) and otherwise runs the Python master and says
 so on one line.
@@ -33,6 +35,7 @@ import numpy as np
 from rubcosim.compile_notice import is_marked, mark, quiet, write_line
 from rubcosim.components import flat_units as fu
 from rubcosim.components.delay_history import ROW
+from rubcosim.components.flat_calls import unit_calls
 from rubcosim.components.flat_hybrid import MAX_MODES, output_map
 from rubcosim.components.unit import Unit
 from rubcosim.progress import watch
@@ -45,15 +48,18 @@ from .protocols import ElasticContact, RigidContact
 CHUNK = 4000  # loop passes between progress updates
 COMPILED = "cosim-compiled-master"  # the marker of the compiled loop in numba's cache
 HISTORY_ROWS = 4096  # a controller's history buffer to begin with (it grows when full)
+_TOLD: set[str] = set()  # the one-line notices this process has printed
 
 
 def flat_ready(setting: str) -> bool:
     """Whether a master that can run compiled does, under ``cosim.master = setting``:
     ``compiled`` always; ``auto`` once the compiled loop is in numba's cache (a process
-    ran it with this cache), else it says on one line that the Python master runs."""
+    ran it with this cache), else it says on one line (once per process) that the Python
+    master runs."""
     if setting == "compiled" or is_marked(COMPILED):
         return True
-    if not quiet():
+    if not quiet() and COMPILED not in _TOLD:
+        _TOLD.add(COMPILED)
         write_line(
             "rubcosim: the co-simulation's compiled master is not in the cache yet: this run "
             "takes the Python master (the same results, slower per step); 'rubcosim "
@@ -95,7 +101,7 @@ def _graph(master: Any, t_end: float, times: np.ndarray, record: list[tuple[str,
     p = np.zeros((n_units, fu.MAX_PARAMS))
     tol = np.zeros((n_units, 2))
     model = None
-    exact = np.zeros(n_units, np.bool_)
+    exact = np.zeros(n_units, np.int64)  # 1: the rotor steps exactly (an int for step_c)
     omap = np.zeros((n_units, fu.MAX_OUTPUTS), np.int64)  # hybrid units' output sources
     mval = np.zeros((n_units, fu.MAX_OUTPUTS, MAX_MODES))
     for k, u in enumerate(units):
@@ -162,7 +168,7 @@ def _graph(master: Any, t_end: float, times: np.ndarray, record: list[tuple[str,
                        np.count_nonzero(is_ctl)], np.int64),
         fset=np.array([st.rtol, st.iteration_tol, st.min_step, st.max_step, master.t_tol,
                        master.period, t_end]),
-        omap=omap, mval=mval, ctl=ctl,
+        omap=omap, mval=mval, ctl=ctl, calls=unit_calls(),
     )  # fmt: skip
 
 

@@ -8,9 +8,7 @@ state).  Every function returns a status (0: fine); a nonzero one is recorded in
 
 from __future__ import annotations
 
-from rubcosim.components.flat_controller import row_outputs, row_step
-from rubcosim.components.flat_hybrid import hybrid_outputs
-from rubcosim.components.flat_units import K_CONTROLLER, K_HYBRID, STEP_OK, U, do_step, outputs
+from rubcosim.components.flat_units import K_HYBRID, STEP_OK, U
 from rubcosim.components.jit import njit
 from rubcosim.components.kernels import polynomial_at
 
@@ -41,15 +39,15 @@ def fail(S, code, unit, detail):
 
 @njit(inline="always")
 def unit_outputs(G, S, k):
-    """Refresh the master's copy of unit ``k``'s outputs (``get_outputs``)."""
+    """Refresh the master's copy of unit ``k``'s outputs (``get_outputs``), through the
+    C functions of :mod:`rubcosim.components.flat_calls`."""
     kind = G.kind[k]
-    if kind < K_HYBRID:  # the rotors, stators and bearings first: the most common
-        status = outputs(kind, G.p[k], S.ust[k], S.out[k])
-    elif kind == K_HYBRID:
-        status = hybrid_outputs(G.ny[k], G.node[k], G.nout[k], G.ode_idx[k, : G.node[k]],
-                                G.omap[k], G.mval[k], G.p[k], S.ust[k], S.out[k])  # fmt: skip
-    else:  # K_CONTROLLER
-        status = row_outputs(G.p[k], S.ust[k], S.cbuf[G.ctl[k]], S.cscr, S.out[k])
+    if kind < K_HYBRID:  # the rotors, stators and bearings: the most common, four arguments
+        status = G.calls[1](kind, G.p[k], S.ust[k], S.out[k])
+    else:
+        status = G.calls[2](kind, G.ny[k], G.node[k], G.nout[k], G.ode_idx[k], G.omap[k],
+                            G.mval[k], G.p[k], S.ust[k], S.cbuf[max(G.ctl[k], 0)], S.cscr,
+                            S.out[k])  # fmt: skip
     if status != STEP_OK:
         return fail(S, FAIL_OUTPUT, k, status)
     return 0
@@ -57,12 +55,12 @@ def unit_outputs(G, S, k):
 
 @njit(inline="always")
 def unit_step(G, S, k, t, h):
-    if G.kind[k] != K_CONTROLLER:
-        idx = G.ode_idx[k, : G.node[k]]
-        status = do_step(G.kind[k], G.ode[k], G.exact[k], G.ny[k], G.nin[k], idx, G.p[k],
-                         G.tol[k], G.model, S.ust[k], t, h)  # fmt: skip
-    else:
-        status = row_step(G.p[k], S.ust[k], S.cbuf[G.ctl[k]], S.cscr, t, h)
+    """Advance unit ``k`` from ``t`` by ``h`` (s), through the C function
+    :func:`rubcosim.components.flat_calls.step_c`."""
+    A, Bu, a, b, c = G.model
+    status = G.calls[0](G.kind[k], G.ode[k], G.exact[k], G.ny[k], G.nin[k], G.node[k],
+                        G.ode_idx[k], G.p[k], G.tol[k], A, Bu, a, b, c, S.ust[k],
+                        S.cbuf[max(G.ctl[k], 0)], S.cscr, t, h)  # fmt: skip
     if status != STEP_OK:
         return fail(S, FAIL_STEP, k, status)
     return 0

@@ -32,6 +32,11 @@ def _name(engine: str, has_delay: bool) -> str:
     return f"{engine}-engine-{'delay' if has_delay else 'no-delay'}"
 
 
+def engine_label(engine: str, has_delay: bool) -> str:
+    """How the notices name an engine variant."""
+    return f"the {engine} engine for every model {'with' if has_delay else 'without'} a delay"
+
+
 def is_compiled(engine: str, has_delay: bool) -> bool:
     """Whether a process has compiled (or loaded) this engine variant with this cache."""
     return is_marked(_name(engine, has_delay))
@@ -74,8 +79,7 @@ def start(system: Any, engine: str) -> Helper | None:
     or None when it is compiled already, or helpers are off, or there is one core."""
     if not _enabled() or is_compiled(engine, system.has_delay):
         return None
-    delay = "with a delay" if system.has_delay else "without a delay"
-    what = f"the {engine} engine for every model {delay}"
+    what = engine_label(engine, system.has_delay)
     env = dict(os.environ, RUBCOSIM_COMPILE_AHEAD="0", RUBCOSIM_QUIET_COMPILE="1")
     try:
         process = subprocess.Popen(
@@ -91,8 +95,13 @@ def start(system: Any, engine: str) -> Helper | None:
         later = "later runs load it from the cache"
         write_line(f"rubcosim: compiling {what} in a second process (first use; {later})")
     # the system's arrays and names, a few kB: the pipe takes them before the helper reads
-    process.stdin.write(pickle.dumps(system))
-    process.stdin.close()
+    try:
+        process.stdin.write(pickle.dumps(system))
+        process.stdin.close()
+    except OSError:  # the helper died at start (BrokenPipeError): compile here instead
+        process.kill()
+        process.wait()
+        return None
     process.stdin = None  # communicate() must not flush a closed pipe
     return Helper(process, what)
 
@@ -102,8 +111,8 @@ def compile_engine(system: Any, engine: str) -> None:
     from .null_model import null_model
     from .simulate import tiny_run
 
-    rtol, max_step = 1e-6, min(float("inf"), system.min_delay())
-    tiny_run(system, null_model(system.ip), engine, 0.0, rtol, rtol, max_step)
+    rtol = 1e-6
+    tiny_run(system, null_model(system.ip), engine, 0.0, rtol, rtol, system.min_delay())
     mark_compiled(engine, system.has_delay)
 
 

@@ -128,8 +128,7 @@ def _warm_up(
     model = compiled_model(system)  # says so if it compiles
     if helper is not None:
         helper.finish()
-    delay = "with a delay" if system.has_delay else "without a delay"
-    with announce(f"the {engine} engine for every model {delay}"):
+    with announce(compile_ahead.engine_label(engine, system.has_delay)):
         tiny_run(system, model, engine, t_start, rtol, atol, max_step)
     compile_ahead.mark_compiled(engine, system.has_delay)
     return time.perf_counter() - t0
