@@ -15,6 +15,7 @@ from rubcosim.reference.simulate import ENGINES
 
 from . import api, cli_control, cli_lyapunov, cli_maps, cli_ssp
 from .analysis.errors import AnalysisError
+from .chaos_check import summary
 from .cli_options import EXIT_BAD_INPUT, EXIT_RUN_FAILED, add_set_option
 from .scenario import ScenarioError
 from .writing import check_output_dir
@@ -115,6 +116,9 @@ def cmd_check(args: argparse.Namespace) -> int:
         f"{report['impacts']['reference']}, {wall['cosim']:.3f} s vs {wall['reference']:.3f} s, "
         f"{co.counters.get('steps', 0)} steps ({co.counters.get('rejected', 0)} rejected) -> {out}"
     )
+    chaos = summary(report["chaos"])
+    if chaos is not None:
+        print(f"rubcosim: {chaos}")
     if not checked.ok:
         print(f"rubcosim: co-simulation failed: {co.message}", file=sys.stderr)
         return EXIT_RUN_FAILED

@@ -3,7 +3,9 @@
 Both run the same scenario and record the same outputs at the same times.
 Per output the report gives the largest absolute difference over the output
 grid and that difference relative to the largest magnitude the reference
-reaches (``max_rel_error``); impact times are compared in order.
+reaches (``max_rel_error``); impact times are compared in order.  On a chaotic motion
+the report also says how much of the difference chaos accounts for
+(:mod:`.chaos_check`: the ``chaos`` block).
 """
 
 from __future__ import annotations
@@ -17,6 +19,7 @@ from rubcosim.orchestrator.assembly import run_cosim
 from rubcosim.orchestrator.master import CosimResult
 from rubcosim.orchestrator.settings import CosimSettings
 
+from .chaos_check import assess, output_errors, worst
 from .timegrid import output_times
 
 
@@ -61,17 +64,7 @@ def compare(
     )
     n = min(len(co.t), ref.result.t.size)
     rows = grid_rows[grid_rows < n]
-    outputs = {}
-    for name in scenario.outputs:
-        a = ref.result.output(name)[rows]
-        b = co.output(name)[rows]
-        err = float(np.max(np.abs(a - b))) if rows.size else float("nan")
-        scale = float(np.max(np.abs(a))) if rows.size else float("nan")
-        outputs[name] = {
-            "max_abs_error": err,
-            "max_rel_error": err / scale if scale > 0.0 else (0.0 if err == 0.0 else float("inf")),
-            "reference_max_abs": scale,
-        }
+    outputs = output_errors(ref.result, co, list(scenario.outputs), rows)
     ref_impacts = ref.result.events.t[ref.result.events.of_kind("impact")]
     co_impacts = co.events_of_kind("impact")
     diffs = nearest_differences(co_impacts, ref_impacts)
@@ -90,13 +83,14 @@ def compare(
         "input_orders": co.input_orders,
         "master": co.master,
         "outputs": outputs,
-        "worst_rel_error": max((o["max_rel_error"] for o in outputs.values()), default=0.0),
+        "worst_rel_error": worst(outputs),
         "impacts": {"reference": int(ref_impacts.size), "cosim": impact_count(scenario, co)},
         "impact_time_max_diff_s": float(diffs.max()) if k else None,  # to the nearest one
         "impacts_compared": int(k),
         "wall_time_s": {"reference": ref.result.wall_time_s, "cosim": co.wall_time_s},
         "counters": co.counters,
     }
+    report["chaos"] = assess(scenario, ref, co, rows, settings.rtol)
     return report, ref, co, rows
 
 

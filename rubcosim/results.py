@@ -158,6 +158,14 @@ class CheckResult:
         """The largest difference of an output, relative to the reference's largest value."""
         return float(self.report["worst_rel_error"])
 
+    @property
+    def chaos(self) -> dict[str, Any]:
+        """How much of the difference a correct integration at the co-simulation's tolerance
+        shows too, and whether chaos is why (:mod:`rubcosim.chaos_check`): ``verdict``
+        (``regular``, or ``sensitive``/``chaotic`` then ``within the peer``/``beyond the
+        peer``), the peer's difference, the largest Lyapunov exponent (1/s), the horizon (s)."""
+        return self.report["chaos"]
+
     def write(self, out_dir: str | Path, plots: bool = True) -> Path:
         """Write ``report.json`` and (``plots``) ``comparison.png`` (as ``rubcosim check``)."""
         from .writing import write_directory
