@@ -62,7 +62,8 @@ def sim_settings(raw: Mapping[str, Any]) -> dict[str, Any]:
     step = sim["output_step"] or (sim["t_end"] - sim["t_start"]) / 1000.0
     if (sim["t_end"] - sim["t_start"]) / step > MAX_OUTPUT_POINTS:
         raise ScenarioError(
-            f"sim.output_step = {step!r} gives more than {MAX_OUTPUT_POINTS} output points"
+            f"sim.output_step = {step!r} over sim.t_start = {sim['t_start']!r} to sim.t_end = "
+            f"{sim['t_end']!r} gives more than {MAX_OUTPUT_POINTS} output points"
         )
     if sim["output_step"] is None:
         sim["output_step"] = step
