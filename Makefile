@@ -41,7 +41,7 @@ format: $(STAMP)
 	$(VENV)/bin/ruff check --fix .
 
 test: lint $(WARM)
-	$(PY) -m pytest -n 2 --durations=15
+	$(PY) -m pytest -n 2 --dist worksteal --durations=15
 
 # every benchmark the documents quote (benchmarks/catalog.py), then their tables copied
 # into README.md and BENCHMARKS.md; `make bench-stale` re-runs only the stale ones

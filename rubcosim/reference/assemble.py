@@ -9,6 +9,7 @@ from typing import Any
 
 import numpy as np
 
+from rubcosim.components.declaration import Derived
 from rubcosim.components.graph import ModelGraph, UnitNode, model_scales
 from rubcosim.components.hybrid_dispatch import hybrid_types
 from rubcosim.components.parameters import ParameterError
@@ -137,7 +138,8 @@ def _check_rotor_model(units: Mapping[str, UnitNode]) -> None:
         s = stator.params
         if math.hypot(r["x0"] - s["x_offset"], r["y0"] - s["y_offset"]) > s["clearance"]:
             raise ParameterError(
-                "rotor.x0/rotor.y0 start the disc beyond the rigid stator's clearance"
+                "rotor.x0/rotor.y0 start the disc beyond the rigid stator's clearance "
+                "(stator.clearance about stator.x_offset/stator.y_offset)"
             )
 
 
@@ -150,9 +152,25 @@ def kernel_values(units: Mapping[str, UnitNode]) -> dict[str, dict[str, Any]]:
     for role, u in units.items():
         q = {**u.params, **neighbours.get(role, {})}
         for d in u.declaration.derived:
-            q[d.name] = d.value(q)
+            q[d.name] = _derived_value(role, u, d, q)
         values[role] = q
     return values
+
+
+def _derived_value(role: str, u: UnitNode, d: Derived, q: Mapping[str, Any]) -> float:
+    """``d``'s value for the unit in ``role``; a ParameterError naming the unit's
+    parameters when they make it overflow or not a finite number (each in its range, a
+    product of them can still pass 1e308)."""
+    try:
+        value = d.value(q)
+    except (OverflowError, ZeroDivisionError):
+        value = math.inf
+    if not math.isfinite(value):
+        names = ", ".join(f"{role}.{k}" for k in u.params)
+        raise ParameterError(
+            f"{role}: its {d.name} ({d.description}) is not a finite number; check {names}"
+        )
+    return value
 
 
 def _rotor_system(units: Mapping[str, UnitNode], chatter_tol: float) -> System:
