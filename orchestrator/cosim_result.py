@@ -40,6 +40,8 @@ class CosimResult:
     settings: CosimSettings
     input_orders: dict[str, int] = field(default_factory=dict)
     master: str = "python"  # which master ran: "compiled" or "python" (cosim.master)
+    # recorded String outputs of foreign FMUs: name -> text array (len(t),)
+    texts: dict[str, np.ndarray] = field(default_factory=dict)
 
     @property
     def ok(self) -> bool:
@@ -50,12 +52,14 @@ class CosimResult:
         return f"cosim-{self.settings.backend}"
 
     def output(self, name: str) -> np.ndarray:
+        """The recorded values of ``name`` (a text array for a String output)."""
+        if name in self.texts:
+            return self.texts[name]
         try:
             return self.values[:, self.names.index(name)]
         except ValueError:
-            raise KeyError(
-                f"{name!r} was not recorded (recorded: {', '.join(self.names)})"
-            ) from None
+            recorded = ", ".join([*self.names, *self.texts])
+            raise KeyError(f"{name!r} was not recorded (recorded: {recorded})") from None
 
     def events_of_kind(self, kind: str) -> np.ndarray:
         return self.event_t[[k == kind for k in self.event_kind]]

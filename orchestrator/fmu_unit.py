@@ -29,7 +29,7 @@ from fmpy.fmi2 import (
 from rubcosim.components.unit import StepError
 
 from .fmi_direct import StepCalls, ValueCall
-from .foreign import signal_names
+from .foreign import signal_names, text_outputs
 
 # A pythonfmu FMU imports `pythonfmu` from its own resources unless the package is already
 # loaded, and that copy has no build binaries: load the installed one first, so that building
@@ -72,6 +72,7 @@ class FmuUnit:
         # what the master reads after every step: the numeric outputs (a String output
         # is neither recorded nor connected, see orchestrator.foreign)
         self.inputs, self.outputs = signal_names(self.md)
+        self.text_outputs = text_outputs(self.md)  # String outputs: read where recorded
         self.messages: list[str] = []
         # per list of names read together: (names of one type, function giving their values)
         self._groups: dict[tuple[str, ...], list[tuple[list[str], Any]]] = {}
@@ -180,8 +181,9 @@ class FmuUnit:
             return ValueCall(self._fmu, "fmi2GetReal", refs).get
         if kind == "Integer":
             return ValueCall(self._fmu, "fmi2GetInteger", refs, ctype=fmi2Integer).get
-        getter = self._fmu.getBoolean if kind == "Boolean" else self._fmu.getString
-        return lambda: getter(refs)
+        if kind == "Boolean":
+            return lambda: self._fmu.getBoolean(refs)
+        return lambda: [_text(v) for v in self._fmu.getString(refs)]
 
     def set_input(self, name: str, value: float) -> None:
         self._call(f"set {name}", self.set_values, {name: value})
@@ -315,3 +317,10 @@ class FmuUnit:
         callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
         callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
         return callbacks
+
+
+def _text(value: bytes | str | None) -> str:
+    """A String variable's value as text (fmpy gives the C string's bytes; NULL is "")."""
+    if value is None:
+        return ""
+    return value.decode("utf-8", "replace") if isinstance(value, bytes) else value

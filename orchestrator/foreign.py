@@ -19,9 +19,11 @@ FMU, so such a scenario runs only as a co-simulation.
 Variables of every FMI 2.0 type are handled: Real, Integer, Boolean and
 Enumeration outputs are numbers, recorded and connected like any signal (an
 Integer, Boolean or Enumeration input takes only a source of its own type,
-never a Real one); String variables can be given start values but are
-neither recorded nor connected, and a scenario that asks for one is refused
-with a message naming it.
+never a Real one).  A String output is recorded where ``record`` (or
+``[outputs] record``) names it, as text (its own quoted column of
+``results.csv``, a text array in the result); by default only the numeric
+outputs are.  String variables can be given start values, and are never
+connected: a connection from or to one is refused with a message naming it.
 """
 
 from __future__ import annotations
@@ -32,7 +34,7 @@ from pathlib import Path
 from typing import Any
 
 KEYS = ("path", "start", "record", "isolate")
-# FMI types read as numbers; a String variable is neither recorded nor connected
+# FMI types read as numbers; a String variable is recorded as text, never connected
 NUMERIC_TYPES = ("Real", "Integer", "Boolean", "Enumeration")
 
 
@@ -43,6 +45,11 @@ def signal_names(md: Any) -> tuple[list[str], list[str]]:
         v.name for v in md.modelVariables if v.causality == "output" and v.type in NUMERIC_TYPES
     ]
     return inputs, outputs
+
+
+def text_outputs(md: Any) -> list[str]:
+    """The String outputs of a model description (recorded as text where asked)."""
+    return [v.name for v in md.modelVariables if v.causality == "output" and v.type == "String"]
 
 
 class ForeignFmuError(ValueError):
@@ -64,7 +71,8 @@ class ForeignFmu:
     can_interpolate: bool = False
     isolate: bool = False  # run it in a worker process (a crash fails the run, not the process)
     types: dict[str, str] = field(default_factory=dict)  # FMI type of each input and output
-    strings: tuple[str, ...] = ()  # String inputs and outputs: not recorded, not connected
+    strings: tuple[str, ...] = ()  # String inputs and outputs: never connected
+    texts: tuple[str, ...] = ()  # String outputs: recorded as text where asked
 
     def refused(self) -> dict[str, str]:
         """Why each String variable cannot be connected (for the wiring's messages)."""
@@ -72,8 +80,7 @@ class ForeignFmu:
 
 
 STRING_REFUSED = (
-    "a String variable; only Real, Integer, Boolean and Enumeration signals are recorded "
-    "and connected"
+    "a String variable; only Real, Integer, Boolean and Enumeration signals are connected"
 )
 
 
@@ -118,13 +125,12 @@ def foreign_fmu(name: str, table: Mapping[str, Any], base_dir: Path) -> ForeignF
     record = table.get("record", list(outputs))
     if not isinstance(record, list) or not all(isinstance(r, str) for r in record):
         raise ForeignFmuError(f"{where}.record must be a list of output names")
+    texts = tuple(text_outputs(md))
     for r in record:
-        if r in strings:
-            raise ForeignFmuError(f"{where}.record: {r!r} is {STRING_REFUSED}")
-        if r not in outputs:
+        if r not in outputs and r not in texts:
             raise ForeignFmuError(
                 f"{where}.record: {r!r} is not an output of {path.name} "
-                f"(outputs: {', '.join(outputs)})"
+                f"(outputs: {', '.join((*outputs, *texts))})"
             )
     return ForeignFmu(
         name=name,
@@ -139,6 +145,7 @@ def foreign_fmu(name: str, table: Mapping[str, Any], base_dir: Path) -> ForeignF
         isolate=isolate,
         types={v.name: v.type for v in signals},
         strings=strings,
+        texts=texts,
     )
 
 

@@ -24,7 +24,7 @@ from fmpy import read_model_description
 from rubcosim.components.unit import StepError
 
 from .cosim_result import CosimError
-from .foreign import signal_names
+from .foreign import signal_names, text_outputs
 
 JOIN_SECONDS = 5.0
 
@@ -79,6 +79,7 @@ class IsolatedFmu:
         self.md = read_model_description(str(self.path), validate=False)
         self.name = options.get("name") or self.md.modelName
         self.inputs, self.outputs = signal_names(self.md)
+        self.text_outputs = text_outputs(self.md)  # String outputs: read where recorded
         start_time = float(options.get("start_time", 0.0))
         self.time = float(start_time)
         self.messages: list[str] = []

@@ -52,6 +52,7 @@ from .flat_master import flat_ready, flat_unsupported, run_flat
 from .kink_steps import KinkSteps
 from .ordering import evaluation_order
 from .protocols import EventProtocol
+from .recording import Recorder
 from .rollback import Rollback
 from .settings import CosimSettings
 from .step_control import PIController
@@ -240,10 +241,9 @@ class Master(CouplingNorms, EventSteps, KinkSteps, Rollback):
         p = st.extrapolation if st.adaptive else 0
         self.pi = PIController(order=p + 1)
         self.accel: dict[tuple[str, str], float] = {}
-        self.rows: list[list[float]] = []
         self.events: list[tuple[float, str, str]] = []
         self.recent_events: deque[float] = deque()
-        self.record = [tuple(n.split(".", 1)) for n in record]
+        self.recorder = Recorder(record, self.units)
         self.output_times = np.asarray(output_times, dtype=float)
         self.k_out = 0
         status, message = "ok", ""
@@ -256,12 +256,13 @@ class Master(CouplingNorms, EventSteps, KinkSteps, Rollback):
                 self._loop(t_end)
         except (CosimError, StepError) as exc:
             status, message = "failed", str(exc)
-        n = len(self.output_times[: len(self.rows)])
-        values = np.array(self.rows, dtype=float).reshape(n, len(self.record))
+        n = len(self.output_times[: len(self.recorder)])
+        names, values, texts = self.recorder.arrays(n)
         return CosimResult(
             t=self.output_times[:n].copy(),
-            names=[".".join(r) for r in self.record],
+            names=names,
             values=values,
+            texts=texts,
             event_t=np.array([e[0] for e in self.events]),
             event_kind=[e[1] for e in self.events],
             event_unit=[e[2] for e in self.events],
@@ -279,7 +280,7 @@ class Master(CouplingNorms, EventSteps, KinkSteps, Rollback):
         while (
             self.k_out < len(self.output_times) and self.output_times[self.k_out] <= self.time + tol
         ):
-            self.rows.append([float(self.out[u][o]) for u, o in self.record])
+            self.recorder.take(self.out, self.units)
             self.k_out += 1
 
     def _loop(self, t_end: float) -> None:

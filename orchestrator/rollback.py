@@ -45,7 +45,7 @@ class Rollback:
                 "accel": self.accel,
                 "out": self.out,
                 "protocols": [p.state for p in self.protocols],
-                "rows": len(self.rows),
+                "rows": len(self.recorder),
                 "events": len(self.events),
                 "k_out": self.k_out,
                 "recent": list(self.recent_events),
@@ -58,7 +58,7 @@ class Rollback:
         self.hist, self.scale, self.accel, self.out = s["hist"], s["scale"], s["accel"], s["out"]
         for p, state in zip(self.protocols, s["protocols"], strict=True):
             p.state = state
-        del self.rows[s["rows"] :]
+        self.recorder.truncate(s["rows"])
         del self.events[s["events"] :]
         self.k_out = s["k_out"]
         self.recent_events = deque(s["recent"])

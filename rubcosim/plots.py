@@ -12,6 +12,7 @@ import numpy as np
 # fixed margins instead of a layout engine (each measured at a few tenths of a second).
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
+from matplotlib.ticker import ScalarFormatter
 
 DPI = 120
 
@@ -20,8 +21,11 @@ if TYPE_CHECKING:
 
 
 def _sci(ax) -> None:
-    """Scientific tick labels with a shared exponent (displacements are ~1e-4 m)."""
-    ax.ticklabel_format(axis="both", style="sci", scilimits=(-2, 3), useMathText=False)
+    """Scientific tick labels with a shared exponent (displacements are ~1e-4 m) on the
+    numeric axes (an axis of texts, a String output of a foreign FMU, has categories)."""
+    for axis in ("x", "y"):
+        if isinstance(getattr(ax, f"{axis}axis").get_major_formatter(), ScalarFormatter):
+            ax.ticklabel_format(axis=axis, style="sci", scilimits=(-2, 3), useMathText=False)
 
 
 def _default_pair(run: ScenarioRun) -> list[str]:
@@ -79,7 +83,10 @@ def timeseries(run: ScenarioRun, names: list[str], path: Path) -> None:
     axes = fig.subplots(len(names), 1, sharex=True, squeeze=False)
     fig.subplots_adjust(hspace=0.3)
     for ax, name in zip(axes[:, 0], names, strict=True):
-        ax.plot(run.time, run.series(name), lw=0.7)
+        values = run.series(name)
+        # a text (a foreign FMU's String output) holds from one output time to the next
+        steps = "steps-post" if values.dtype.kind in "UO" else "default"
+        ax.plot(run.time, values, lw=0.7, drawstyle=steps)
         ax.set_ylabel(name, fontsize=8)
         _sci(ax)
     axes[-1, 0].set_xlabel("time (s)")

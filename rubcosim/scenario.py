@@ -244,7 +244,7 @@ def build_scenario(
         raise ScenarioError(str(exc)) from None
     available_outputs = [
         *system.output_names,
-        *(f"{n}.{o}" for n, f in fmus.items() for o in f.outputs),
+        *(f"{n}.{o}" for n, f in fmus.items() for o in (*f.outputs, *f.texts)),
     ]
     outputs = _check_table("[outputs]", data.get("outputs", {}))
     unknown = sorted(set(outputs) - {"record"})

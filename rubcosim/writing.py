@@ -73,19 +73,31 @@ def write_directory(out_dir: str | Path, fill: Callable[[Path], Any]) -> Path:
     return out
 
 
-def output_table(run: ScenarioRun | CosimRun) -> tuple[np.ndarray, list[str]]:
-    """The rows of ``results.csv``: the output grid up to the time reached (s), then one
-    column per recorded output; and the column names."""
+def output_table(run: ScenarioRun | CosimRun) -> tuple[list[np.ndarray], list[str]]:
+    """The columns of ``results.csv``: the output grid up to the time reached (s), then
+    one per recorded output (a text array for a String output of a foreign FMU); and
+    the column names."""
     names = run.scenario.outputs
     keep = run.time <= run.result.t_reached + 1e-12
-    table = np.column_stack([run.time[keep]] + [run.series(n)[keep] for n in names])
-    return table, ["time", *names]
+    return [run.time[keep], *(run.series(n)[keep] for n in names)], ["time", *names]
 
 
 def write_csv(run: ScenarioRun | CosimRun, path: str | Path) -> Path:
-    """Write ``results.csv`` (time, then every recorded output; 17 significant digits)."""
-    table, header = output_table(run)
-    np.savetxt(path, table, delimiter=",", header=",".join(header), comments="", fmt="%.17g")
+    """Write ``results.csv``: time, then every recorded output; numbers with 17
+    significant digits, texts quoted (double quotes doubled inside, as RFC 4180)."""
+    columns, header = output_table(run)
+    if all(c.dtype.kind == "f" for c in columns):
+        table = np.column_stack(columns)
+        np.savetxt(path, table, delimiter=",", header=",".join(header), comments="", fmt="%.17g")
+        return Path(path)
+    cells = [
+        ['"' + str(v).replace('"', '""') + '"' for v in c]
+        if c.dtype.kind in "UO"
+        else [f"{v:.17g}" for v in c]
+        for c in columns
+    ]
+    lines = [",".join(header), *(",".join(row) for row in zip(*cells, strict=True))]
+    Path(path).write_text("\n".join(lines) + "\n")
     return Path(path)
 
 

@@ -128,17 +128,46 @@ def test_foreign_outputs_of_every_fmi_type(example):
     # the ball is at rest by about 41 ms (1e-4 m drop, e = 0.8): resting follows h
     assert resting[0] == 0.0 and resting[-1] == 1.0 and h[-1] == 0.0
     assert np.all(h[resting == 1.0] == 0.0)
-    assert "ball.phase" not in r.names
-    # asking to record or connect the String output is refused, naming it
-    with pytest.raises(ScenarioError, match="fmus.ball.record: 'phase' is a String variable"):
-        build_scenario({**data, "fmus": {"ball": {**table, "record": ["h", "phase"]}}},
-                       source=str(example))  # fmt: skip
+    assert "ball.phase" not in r.names and not r.texts
+    # connecting the String output is refused, naming it
     wired = {**data, "connections": {"rotor.fy": ["stator.fy", "ball.phase"]}}
     with pytest.raises(ScenarioError, match="rotor.fy: ball.phase is a String variable"):
         build_scenario(wired, source=str(example))
     # a Boolean output drives a Real input (as 0 or 1)
     wired = {**data, "connections": {"rotor.fy": ["stator.fy", "ball.resting"]}}
     assert build_scenario(wired, source=str(example)).graph.connections
+
+
+@pytest.mark.parametrize("isolate", [False, True])
+def test_a_string_output_is_recorded_as_text_where_asked(example, tmp_path, isolate):
+    # the ball's phase ("falling", "rising", "resting") recorded beside its height: it
+    # follows the closed form's velocity (the FMU's own String, read at each output time)
+    data = tomllib.loads(example.read_text())
+    ball = {**data["fmus"]["ball"], "record": ["h", "v", "phase"], "isolate": isolate}
+    sc = build_scenario({**data, "fmus": {"ball": ball}, "sim": {"t_end": 0.06}},
+                        source=str(example))  # fmt: skip
+    assert "ball.phase" in sc.outputs
+    r = run_cosim(sc)
+    assert r.ok, r.message
+    phase, v, h = r.output("ball.phase"), r.output("ball.v"), r.output("ball.h")
+    assert phase.dtype.kind == "U" and phase.shape == r.t.shape
+    expected = np.where((h <= 0.0) & (v == 0.0), "resting", np.where(v > 0.0, "rising", "falling"))
+    assert list(phase) == list(expected)
+    assert {"falling", "rising", "resting"} <= set(phase)
+    # results.csv: the texts in their own quoted column, the numbers as before
+    sc2 = build_scenario({**data, "fmus": {"ball": {**ball, "record": ["h", "phase"]}},
+                          "sim": {"t_end": 0.02}}, source=str(example))  # fmt: skip
+    from rubcosim.runner import run_cosim_scenario
+    from rubcosim.writing import write_csv
+
+    run = run_cosim_scenario(sc2)
+    lines = write_csv(run, tmp_path / "results.csv").read_text().splitlines()
+    header = lines[0].split(",")
+    col = header.index("ball.phase")
+    cells = [line.split(",") for line in lines[1:]]
+    assert all(c[col] in ('"falling"', '"rising"', '"resting"') for c in cells)
+    hcol = header.index("ball.h")
+    assert [float(c[hcol]) for c in cells] == list(run.series("ball.h"))
 
 
 def test_a_discrete_input_takes_only_a_source_of_its_type():
