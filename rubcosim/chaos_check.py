@@ -27,6 +27,14 @@ coupling error from chaos: both differences are as large as the motion.  Before 
 can be told apart: the co-simulation is *within the peer* when its worst relative
 difference before the horizon is at most :data:`PEER_FACTOR` times the peer's there
 (and its tolerance), and *beyond the peer* otherwise, which points at the coupling.
+Past the horizon the trajectories are compared in statistics instead
+(``beyond_horizon``): the impact rate, and the distribution of every output's values
+on the output grid (the two-sample Kolmogorov-Smirnov distance), of the co-simulation
+and of the peer against the reference's.  The co-simulation's statistics *agree* when
+each figure is within :data:`STAT_FACTOR` times the peer's (or :data:`STAT_FLOOR`): two
+correct integrations of the same chaotic motion differ that much in their statistics
+over the same window.  The Lyapunov exponent is the reference model's: a
+co-simulation has no variational equations to give its own.
 Every figure is in ``report.json``'s ``chaos`` block.
 """
 
@@ -40,6 +48,9 @@ import numpy as np
 PEER_FACTOR = 10.0  # the co-simulation may stray this much more than the peer
 HORIZON = 1e-2  # the peer's relative difference at which the comparison stops
 SENSITIVE = 100.0  # the peer straying this many times its tolerance: compute lambda
+STAT_FACTOR = 3.0  # past the horizon, statistics may differ this much more than the peer's
+STAT_FLOOR = 0.05  # ... or this much (the peer's own may be close to 0 by chance)
+MIN_BEYOND = 20  # output times past the horizon needed to compare statistics
 
 
 def output_errors(ref: Any, other: Any, names: list[str], rows: np.ndarray) -> dict[str, dict]:
@@ -75,6 +86,75 @@ def separation(ref: Any, other: Any, names: list[str], rows: np.ndarray) -> np.n
 def worst(errors: dict[str, dict]) -> float:
     """The largest ``max_rel_error`` of :func:`output_errors` (0 without outputs)."""
     return max((e["max_rel_error"] for e in errors.values()), default=0.0)
+
+
+def impacts_after(result: Any, t: float) -> int:
+    """Impacts of a run after time ``t`` (s): a monolithic result's impact events, a
+    co-simulation's master events, or the growth of a hybrid unit's own count
+    (``oscillator.impacts``, whose impacts the master does not see)."""
+    events = getattr(result, "events", None)
+    if events is not None and hasattr(events, "of_kind"):
+        return int(np.count_nonzero(events.t[events.of_kind("impact")] > t))
+    if "oscillator.impacts" in result.names:
+        counts = result.output("oscillator.impacts")
+        k = int(np.searchsorted(result.t, t, side="right"))
+        return int(counts[-1] - counts[k - 1]) if k else int(counts[-1])
+    return int(np.count_nonzero(result.events_of_kind("impact") > t))
+
+
+def distribution_distance(a: np.ndarray, b: np.ndarray) -> float:
+    """The two-sample Kolmogorov-Smirnov statistic: the largest difference of the
+    empirical distribution functions of ``a`` and ``b`` (0 to 1)."""
+    grid = np.sort(np.concatenate([a, b]))
+    fa = np.searchsorted(np.sort(a), grid, side="right") / a.size
+    fb = np.searchsorted(np.sort(b), grid, side="right") / b.size
+    return float(np.max(np.abs(fa - fb)))
+
+
+def statistics_beyond(
+    ref: Any, other: Any, names: list[str], rows: np.ndarray, t_h: float, t_end: float
+) -> dict:
+    """How ``other``'s motion after ``t_h`` compares with ``ref``'s in statistics: the
+    impact rate (1/s) of each and their relative difference, and per output the
+    distance of the distributions of the values on the grid ``rows``
+    (:func:`distribution_distance`), the largest as ``distribution``."""
+    span = t_end - t_h
+    rate_ref, rate = impacts_after(ref, t_h) / span, impacts_after(other, t_h) / span
+    per_output = {
+        name: distribution_distance(ref.output(name)[rows], other.output(name)[rows])
+        for name in names
+    }
+    if rate_ref > 0.0:
+        rate_diff = abs(rate - rate_ref) / rate_ref
+    else:
+        rate_diff = 0.0 if rate == 0.0 else float("inf")
+    return {
+        "impact_rate": rate,
+        "reference_impact_rate": rate_ref,
+        "impact_rate_rel_diff": rate_diff,
+        "distribution": max(per_output.values(), default=0.0),
+        "distribution_per_output": per_output,
+    }
+
+
+def _beyond_horizon(ref: Any, peer: Any, cosim: Any, names: list[str], rows: np.ndarray,
+                    h: int, t_end: float) -> dict:  # fmt: skip
+    """The ``beyond_horizon`` block: the statistics of the peer and of the co-simulation
+    after the horizon (rows ``rows[h:]``), and whether the co-simulation's agree with the
+    reference's as well as a correct integration's do (each figure within
+    :data:`STAT_FACTOR` times the peer's, or :data:`STAT_FLOOR`)."""
+    after = rows[h:]
+    if after.size < MIN_BEYOND:
+        return {"compared": False, "why": f"fewer than {MIN_BEYOND} output times past it"}
+    t_h = float(ref.result.t[after[0]])
+    peer_stats = statistics_beyond(ref.result, peer, names, after, t_h, t_end)
+    co_stats = statistics_beyond(ref.result, cosim, names, after, t_h, t_end)
+    agree = all(
+        co_stats[k] <= max(STAT_FACTOR * peer_stats[k], STAT_FLOOR)
+        for k in ("impact_rate_rel_diff", "distribution")
+    )
+    return {"compared": True, "from_s": t_h, "to_s": t_end, "output_times": int(after.size),
+            "peer": peer_stats, "cosim": co_stats, "agree": agree}  # fmt: skip
 
 
 def _largest_exponent(scenario: Any, duration: float) -> tuple[float | None, str]:
@@ -135,6 +215,10 @@ def assess(scenario: Any, ref: Any, cosim: Any, rows: np.ndarray, rtol: float) -
     block["cosim_over_peer"] = co_before / peer_before
     within = co_before <= PEER_FACTOR * peer_before
     block["verdict"] = f"{kind}, {'within' if within else 'beyond'} the peer"
+    if h < rows.size:
+        t_end = float(min(ref.result.t_reached, getattr(cosim, "t_reached", np.inf)))
+        beyond = _beyond_horizon(ref, peer, cosim, names, rows, h, t_end)
+        block["beyond_horizon"] = beyond
     return block
 
 
@@ -158,7 +242,19 @@ def summary(block: dict) -> str | None:
         f"against its {before['peer']:.3g}{until}"
     )
     if block["verdict"].endswith("within the peer"):
-        return f"{head}: what a correct integration does, not a coupling error"
-    return (
-        f"{head}: {block['cosim_over_peer']:.3g}x, more than a correct integration (the coupling?)"
-    )
+        line = f"{head}: what a correct integration does, not a coupling error"
+    else:
+        over = block["cosim_over_peer"]
+        line = f"{head}: {over:.3g}x, more than a correct integration (the coupling?)"
+    beyond = block.get("beyond_horizon")
+    if beyond and beyond["compared"]:
+        co, peer = beyond["cosim"], beyond["peer"]
+        line += (
+            f"; beyond t = {beyond['from_s']:.4g} s the statistics "
+            f"{'agree' if beyond['agree'] else 'DISAGREE'}: impact rate "
+            f"{co['impact_rate']:.4g} 1/s against {co['reference_impact_rate']:.4g} "
+            f"({co['impact_rate_rel_diff']:.2g}; the peer {peer['impact_rate_rel_diff']:.2g}), "
+            f"distributions of the outputs {co['distribution']:.2g} apart "
+            f"(Kolmogorov-Smirnov; the peer {peer['distribution']:.2g})"
+        )
+    return line

@@ -5,10 +5,11 @@ from __future__ import annotations
 
 import json
 
+import numpy as np
 import pytest
 
 from rubcosim import api
-from rubcosim.chaos_check import separation
+from rubcosim.chaos_check import distribution_distance, separation, summary
 from rubcosim.cli import main
 
 # the offset rigid stator inside its chaotic band (issue 49: a worst relative difference
@@ -79,3 +80,42 @@ def test_the_cli_prints_the_chaos_line(tmp_path, capsys):
     assert "the motion is sensitive (largest Lyapunov exponent" in printed
     assert "e-foldings: chaotic)" in printed
     assert "what a correct integration does, not a coupling error" in printed
+
+
+LONG = {**CHAOTIC, "sim.t_end": 1.0}  # past the peer's horizon (about 0.34 s)
+
+
+def test_past_the_horizon_a_correct_cosimulation_agrees_in_statistics():
+    """Over 1 s the peer itself strays to the size of the motion; after its horizon the
+    co-simulation's impact rate and the distributions of its outputs match the
+    reference's as closely as the peer's do (two correct integrations of one chaotic
+    motion)."""
+    chaos = api.check("jeffcott_offset_rigid_stator", "direct", set=LONG).chaos
+    assert chaos["verdict"] == "chaotic, within the peer", chaos
+    assert 0.2 < chaos["horizon_s"] < 0.6
+    beyond = chaos["beyond_horizon"]
+    assert beyond["compared"] and beyond["agree"], beyond
+    assert beyond["from_s"] == chaos["horizon_s"] and beyond["output_times"] > 1000
+    co, peer = beyond["cosim"], beyond["peer"]
+    assert co["reference_impact_rate"] == peer["reference_impact_rate"] > 100.0
+    assert co["impact_rate_rel_diff"] < 0.05 and co["distribution"] < 0.1
+
+
+def test_past_the_horizon_a_broken_coupling_disagrees_in_statistics(capsys):
+    """The master without event handling at a fixed step: beyond the peer before the
+    horizon, and its statistics after it are not those of the motion."""
+    bad = {**LONG, "cosim.events": "off", "cosim.adaptive": False}
+    chaos = api.check("jeffcott_offset_rigid_stator", "direct", set=bad).chaos
+    assert chaos["verdict"] == "chaotic, beyond the peer", chaos
+    assert chaos["beyond_horizon"]["compared"] and not chaos["beyond_horizon"]["agree"]
+    assert "the statistics DISAGREE" in summary(chaos)
+
+
+def test_the_distribution_distance_is_the_kolmogorov_smirnov_statistic():
+    from scipy.stats import ks_2samp
+
+    rng = np.random.default_rng(7)
+    a, b = rng.normal(size=400), rng.normal(0.3, 1.2, size=250)
+    assert distribution_distance(a, b) == pytest.approx(ks_2samp(a, b).statistic, abs=1e-12)
+    assert distribution_distance(a, a) == 0.0
+    assert distribution_distance(a, a + 100.0) == 1.0
