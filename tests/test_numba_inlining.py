@@ -222,3 +222,23 @@ def _stored_ir(store):
         for function, entries in store._built.items()
         if function in (_leaf.py_func, _branch.py_func)
     }
+
+
+def test_numba_is_the_release_pyproject_pins():
+    """The patches of numba's passes (here and components/numba_ssa.py) and the private
+    names rubcosim/reference/stack_arrays.py uses were written against one numba
+    release; pyproject pins it.  Another numba in this environment (installed by hand)
+    fails here first, by name, rather than as wrong IR somewhere in a kernel."""
+    import tomllib
+    from pathlib import Path
+
+    import numba
+    from packaging.requirements import Requirement
+
+    pyproject = Path(__file__).resolve().parents[1] / "pyproject.toml"
+    deps = tomllib.loads(pyproject.read_text())["project"]["dependencies"]
+    pin = next(Requirement(d) for d in deps if Requirement(d).name == "numba")
+    assert pin.specifier.contains(numba.__version__), (
+        f"numba {numba.__version__} is not the release pyproject pins ({pin.specifier})"
+    )
+    assert pin.specifier.contains("0.68.1") and not pin.specifier.contains("0.69.0")
