@@ -35,7 +35,7 @@ from __future__ import annotations
 import warnings
 
 import numba as nb
-from numba.core import types
+from numba import types
 from numba.core.errors import NumbaExperimentalFeatureWarning
 
 from .flat_controller import row_outputs, row_step
