@@ -163,7 +163,9 @@ def _input_rows(st, idx, n):
     return u
 
 
-@njit
+# inlined into its one caller, the C function :func:`.flat_calls.step_c`: compiled on its
+# own it was one more module holding a copy of every unit type's integrator
+@njit(inline="always")
 def do_step(kind, ode_kind, exact, n_y, n_in, ode_idx, p, tol, model, st, t, h):
     """Advance the unit in row ``st`` from ``t`` to ``t + h`` (s); on failure the row is
     left as it was and the status (not :data:`STEP_OK`) says why.  ``model`` is the

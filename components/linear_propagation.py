@@ -110,7 +110,7 @@ def balance(M: np.ndarray, sweeps: int = 3) -> np.ndarray:
     return d
 
 
-@njit(inline="always")
+@njit
 def _mm(A: np.ndarray, B: np.ndarray) -> np.ndarray:
     """A @ B: plain loops when compiled (a BLAS call costs more than a 13 x 13 product),
     numpy's product in an FMU's plain-Python copy."""
@@ -127,7 +127,7 @@ def _mm(A: np.ndarray, B: np.ndarray) -> np.ndarray:
     return C
 
 
-@njit(inline="always")
+@njit
 def _solve(A: np.ndarray, B: np.ndarray) -> np.ndarray:
     """A^-1 B: Gaussian elimination with partial pivoting in plain loops when compiled
     (LAPACK's call overhead exceeds the work at these sizes), numpy's solve otherwise."""
@@ -166,39 +166,50 @@ def _solve(A: np.ndarray, B: np.ndarray) -> np.ndarray:
 
 
 @njit
+def _plus(Y: np.ndarray, c: float, X: np.ndarray) -> np.ndarray:
+    """``Y + c X`` (a new array).  :func:`expm`'s sums go through this one function: each
+    array expression written out there compiled a loop of its own (seconds of a cold
+    compile, for a function a run calls once per step size)."""
+    return Y + c * X
+
+
+@njit
 def expm(M: np.ndarray) -> np.ndarray:
     """exp(M) of a square float matrix: Pade approximation of the lowest degree that is
     accurate at its norm, with scaling and squaring beyond (Higham 2005)."""
     n = M.shape[0]
     norm = np.abs(M).sum(axis=0).max()
     ident = np.eye(n)
+    zero = np.zeros((n, n))
     X = M.copy()  # C-contiguous whatever M's layout: numba's fast matrix product
     X2 = _mm(X, X)
     for k in range(4):
         if norm <= THETA[k]:
             b = PADE[k]
-            U = b[1] * ident
-            V = b[0] * ident
+            U = _plus(zero, b[1], ident)
+            V = _plus(zero, b[0], ident)
             P = ident
             for q in range(1, k + 2):
                 P = _mm(P, X2)
-                U = U + b[2 * q + 1] * P
-                V = V + b[2 * q] * P
+                U = _plus(U, b[2 * q + 1], P)
+                V = _plus(V, b[2 * q], P)
             U = _mm(X, U)
-            return _solve(V - U, V + U)
+            return _solve(_plus(V, -1.0, U), _plus(V, 1.0, U))
     s = 0
     if norm > THETA13:
         s = int(math.ceil(math.log2(norm / THETA13)))
-        X = X * (1.0 / 2.0**s)
+        X = _plus(zero, 1.0 / 2.0**s, X)
         X2 = _mm(X, X)
     b = PADE[4]
     X4 = _mm(X2, X2)
     X6 = _mm(X4, X2)
-    U = _mm(X, _mm(X6, b[13] * X6 + b[11] * X4 + b[9] * X2) + b[7] * X6 + b[5] * X4
-            + b[3] * X2 + b[1] * ident)  # fmt: skip
-    V = _mm(X6, b[12] * X6 + b[10] * X4 + b[8] * X2) + b[6] * X6 + b[4] * X4 + b[2] * X2
-    V = V + b[0] * ident
-    R = _solve(V - U, V + U)
+    inner = _plus(_plus(_plus(zero, b[13], X6), b[11], X4), b[9], X2)
+    U = _plus(_plus(_plus(_plus(_mm(X6, inner), b[7], X6), b[5], X4), b[3], X2), b[1], ident)
+    U = _mm(X, U)
+    inner = _plus(_plus(_plus(zero, b[12], X6), b[10], X4), b[8], X2)
+    V = _plus(_plus(_plus(_mm(X6, inner), b[6], X6), b[4], X4), b[2], X2)
+    V = _plus(V, b[0], ident)
+    R = _solve(_plus(V, -1.0, U), _plus(V, 1.0, U))
     for _ in range(s):
         R = _mm(R, R)
     return R

@@ -43,7 +43,11 @@ TOO_MANY_EVENTS = 3
 MAX_EVENTS_PER_STEP = 100_000
 
 
-@njit(inline="always")
+# Called, not inlined: a unit's step evaluates the right-hand side and the event
+# functions from half a dozen places, and inlined each place held a copy of every unit
+# type's (the hybrid types' dispatch is inlined into these two); no reference counting:
+# they allocate nothing
+@njit(borrows=True)
 def _rhs(kind, t, y, mode, p, u, t0, dy):
     if kind >= HYBRID:
         hybrid_dispatch.hybrid_rhs(kind - HYBRID, t, y, mode, p, dy)
@@ -51,7 +55,7 @@ def _rhs(kind, t, y, mode, p, u, t0, dy):
         unit_rhs(kind, t, y, p, u, t0, dy)
 
 
-@njit(inline="always")
+@njit(borrows=True)
 def _events(kind, t, y, mode, p, g, dirs, rates):
     """Event functions of ``mode`` (slots without an event: g = 1, direction 0)."""
     for k in range(N_EVENTS):
