@@ -114,11 +114,12 @@ def jobs() -> list[list]:
     """The warm-up's jobs in two phases, each longest first (so that the pool ends them
     together).  First the co-simulation, and in the other process the engines (which
     every model shares), then the analyses, which call them and find them compiled
-    (the co-simulation keeps the other process busy until then).  Then every other
-    model's kernels and the analyses on other models (their kernels only)."""
+    (the co-simulation keeps the other process busy until then); the analyses on the
+    other families go to whichever process ends first.  Then every other model's
+    kernels."""
     engines = [partial(_engines, "impact_duffing"), partial(_engines, "jeffcott_delayed_feedback")]
     models = [partial(_kernels, name) for name in _distinct_models()]
-    return [[_units, *engines, _analyses], [_other_analyses, *models]]
+    return [[_units, *engines, _analyses, _other_analyses], models]
 
 
 def warm_up(workers: int = 2) -> list[tuple[str, float]]:
