@@ -148,7 +148,10 @@ def build_fmus(out_dir: str | Path = DEFAULT_OUT, only: list[str] | None = None)
     out = Path(out_dir)
     if out.exists() and not out.is_dir():
         raise BuildRequestError(f"--out {out} exists and is not a directory")
-    out.mkdir(parents=True, exist_ok=True)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise BuildRequestError(f"--out {out}: cannot create it ({exc.strerror})") from None
     digest = source_digest()
     built = []
     for spec in specs:

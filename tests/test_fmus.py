@@ -327,6 +327,15 @@ def test_build_fmus_command(tmp_path, capsys):
     assert main(["build-fmus", "--out", str(tmp_path / "o"), "--only", "RubcosimRigidStator"]) == 0
     assert (tmp_path / "o" / "RubcosimRigidStator.fmu").is_file()
     assert capsys.readouterr().out.strip().endswith("RubcosimRigidStator.fmu")
+
+
+def test_build_fmus_into_a_folder_that_cannot_be_made_is_one_error(tmp_path, capsys):
+    blocker = tmp_path / "file"
+    blocker.write_text("")  # a file where the output folder's parent should be
+    out = blocker / "fmus"
+    assert main(["build-fmus", "--out", str(out), "--only", "RubcosimRigidStator"]) != 0
+    err = capsys.readouterr().err
+    assert f"--out {out}: cannot create it" in err and "Traceback" not in err
     assert main(["build-fmus", "--out", str(tmp_path / "p"), "--only", "Nope"]) == 2
     assert "unknown FMU 'Nope'" in capsys.readouterr().err
     (tmp_path / "file").write_text("x")

@@ -1,0 +1,1029 @@
+"""Random FMI 2.0 co-simulation call sequences against rubcosim's own FMUs (issue 49, item 3).
+
+Hypothesis draws call sequences that follow the FMI 2.0 co-simulation state machine (FMI
+2.0.5, section 4.2.4): fmi2SetupExperiment and fixed parameters while instantiated; inputs,
+parameters and outputs in Initialization Mode; then inputs, input derivatives (through
+fmi2SetRealInputDerivatives or the tunable carriers), every variable read back, fmi2DoStep
+from the FMU's time, FMU states got, set, freed, serialised and deserialised; fmi2Terminate;
+fmi2Reset back to instantiated.  Each FMU runs in this process through fmpy's low-level
+FMU2Slave, from one extraction per FMU.
+
+The reference is the unit class the FMU wraps, imported from the FMU's own bundle: the same
+source running as plain Python, as inside the FMU.  It is stepped with the same inputs, and
+sent back to a deep copy of itself, taken when the FMU's state was, where the FMU restores
+that state.  Every value read must be the reference's bit for bit.  A step the unit refuses
+(non-finite inputs, a state that is not finite) must be refused by the FMU too, with
+fmi2Discard or fmi2Error, and the FMU must stay where it was.
+
+Invalid calls are mixed in: wrongly typed gets and sets, value references no variable has,
+fmi2DoStep from another time or with a step that is not a positive finite number.  Each must
+be refused (fmi2Error; fmi2Discard or fmi2Error for fmi2DoStep), never answered fmi2OK or
+fmi2Fatal, and must change nothing: the sequence goes on and must still match.
+
+The invalid calls the FMUs answer wrongly today are not drawn here: pythonfmu answers a Python
+exception with fmi2Fatal and drops a reference to the instance, so the process segfaults at
+the next garbage collection or the next such call.  Each of them is run in a subprocess by
+test_an_invalid_call_gets_the_answer_fmi_2_requires, a strict xfail per case: when an FMU is
+fixed, its case passes, the xfail fails, and the call belongs in the fuzz.
+
+RUBCOSIM_FUZZ_EXAMPLES=n draws n sequences per FMU instead of the default.
+"""
+
+from __future__ import annotations
+
+import copy
+import importlib
+import json
+import math
+import os
+import re
+import subprocess
+import sys
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import pytest
+from fmpy import extract, read_model_description
+from fmpy.fmi1 import FMICallException
+from fmpy.fmi2 import FMU2Slave, fmi2Discard, fmi2Error, fmi2OK
+from hypothesis import HealthCheck, settings
+from hypothesis import given as given_
+from hypothesis import strategies as st
+from test_fmus import KEY_OF, step_of, stimulus_params
+
+from rubcosim.components.units import UNIT_CLASSES
+
+# --- what is fuzzed ---------------------------------------------------------------------
+
+EXAMPLES = int(os.environ.get("RUBCOSIM_FUZZ_EXAMPLES", "60"))
+MAX_CALLS = 40  # calls per sequence, after the instantiation
+
+# Fixed-parameter sets a sequence may write while instantiated or initialising (every fixed
+# parameter at once: the example values, overridden by these): each is a valid unit.
+PARAMETER_SETS = {
+    "RubcosimImpactOscillator": (
+        {},
+        stimulus_params("RubcosimImpactOscillator"),
+        {
+            **stimulus_params("RubcosimImpactOscillator"),
+            "stop": "rigid_two_sided",
+            "cubic_stiffness": 1.0,
+            "x0": 0.2,
+            "v0": -0.5,
+        },
+    ),
+    "RubcosimJeffcottRotor": (
+        {},
+        {"eccentricity": 5e-5, "damping": 316.2},
+        {"eccentricity": 5e-5, "damping": 316.2, "integrator": "dop853", "x0": 1e-6, "vy0": 1e-3},
+    ),
+    "RubcosimRigidStator": (
+        {},
+        stimulus_params("RubcosimRigidStator"),
+        {
+            **stimulus_params("RubcosimRigidStator"),
+            "restitution": 0.5,
+            "x_offset": 1e-5,
+            "disc_mass": 10.0,
+        },
+    ),
+    "RubcosimDelayedFeedbackController": (
+        {},
+        stimulus_params("RubcosimDelayedFeedbackController"),
+        {
+            **stimulus_params("RubcosimDelayedFeedbackController"),
+            "feedback": "velocity",
+            "modulation_shape": "sawtooth",
+            "delay_periods": 2,
+            "modulation_seed": 7,
+            "t_on": 2e-4,
+        },
+    ),
+}
+FUZZED = sorted(PARAMETER_SETS)
+
+# The size of each input's values (a real input is drawn from [-size, size]; an integer
+# input from the range given): the sizes of the stimuli of tests/test_units.py, so that
+# the disc reaches the stator's clearance (1e-4 m) and the oscillator its barrier.
+INPUT_SIZES = {
+    "RubcosimImpactOscillator": {"force": 2.0},
+    "RubcosimJeffcottRotor": {
+        "fx": 100.0,
+        "fy": 100.0,
+        "reset_vx": 0.05,
+        "reset_vy": 0.05,
+        "reset_counter": (-1, 3),
+    },
+    "RubcosimRigidStator": {
+        "x": 1.2e-4,
+        "y": 1.2e-4,
+        "vx": 0.05,
+        "vy": 0.05,
+        "other_fx": 100.0,
+        "other_fy": 100.0,
+        "contact_mode": (-1, 4),
+    },
+    "RubcosimDelayedFeedbackController": {"x": 2e-5, "y": 2e-5, "vx": 0.02, "vy": 0.02},
+}
+
+STEP_FACTORS = (1.0, 1.0, 0.5, 2.0, 0.3)  # communication step = factor * step_of(FMU)
+NON_FINITE = (math.nan, math.inf, -math.inf)
+FMI_TYPES = ("Real", "Integer", "Boolean", "String")
+BAD_STEPS = ("negative", "nan", "inf", "time_nan", "time_behind", "time_ahead")
+
+
+def _fmi_type(kind: str) -> str:
+    return {"real": "Real", "int": "Integer", "integer": "Integer", "choice": "String"}[kind]
+
+
+@dataclass(frozen=True)
+class Declared:
+    """An FMU's variables as its unit class declares them (known before any FMU is built,
+    so that the strategies can be made at import)."""
+
+    ident: str
+    params: dict[str, str]  # fixed parameter -> FMI type
+    inputs: dict[str, str]  # input -> FMI type
+    outputs: dict[str, str]
+    carriers: tuple[tuple[str, int], ...]  # (real input, derivative order)
+    count: int  # number of variables: value references 0 .. count - 1
+
+    @classmethod
+    def of(cls, ident: str) -> Declared:
+        unit = UNIT_CLASSES[KEY_OF[ident]]
+        inputs = {s.name: _fmi_type(s.kind) for s in unit.inputs}
+        carriers = tuple((n, k) for n, t in inputs.items() if t == "Real" for k in (1, 2))
+        return cls(
+            ident,
+            {p.name: _fmi_type(p.kind) for p in unit.params_spec},
+            inputs,
+            {s.name: _fmi_type(s.kind) for s in unit.outputs},
+            carriers,
+            len(unit.params_spec) + len(inputs) + len(carriers) + len(unit.outputs),
+        )
+
+    def variables(self) -> dict[str, str]:
+        carriers = {f"{n}_d{k}": "Real" for n, k in self.carriers}
+        return {**self.params, **carriers, **self.inputs, **self.outputs}
+
+
+DECLARED = {ident: Declared.of(ident) for ident in FUZZED}
+
+
+# --- the sequences -------------------------------------------------------------------------
+# A sequence is a list of calls, each a tuple of plain values (so that a failing one can be
+# kept in KEPT below as it is printed):
+#   ("setup", start, stop)        fmi2SetupExperiment (stop None: no stop time defined)
+#   ("parameters", k)             every fixed parameter to PARAMETER_SETS[ident][k]
+#   ("enter",) ("exit",)          fmi2Enter/ExitInitializationMode
+#   ("input", name, value)        fmi2SetReal / fmi2SetInteger on an input
+#   ("derivative", name, order, value, via)   via "fmi2SetRealInputDerivatives" or
+#                                 "carrier" (fmi2SetReal on the tunable <name>_d<order>)
+#   ("step", factor)              fmi2DoStep(time, factor * step_of(ident))
+#   ("get",)                      every variable the state allows, compared with the unit
+#   ("get_state",) ("set_state", i) ("free_state", i) ("serialize", i) ("deserialize", j)
+#                                 i counts the FMU states got or deserialised, j the byte
+#                                 strings serialised, in order
+#   ("terminate",) ("reset",)
+#   ("wrong_type", function, name)     e.g. ("wrong_type", "getInteger", "x")
+#   ("unknown_reference", function, vr)
+#   ("bad_step", kind)            kind in BAD_STEPS
+
+
+def _value(draw, size) -> float | int:
+    if isinstance(size, tuple):
+        return draw(st.integers(*size))
+    pick = draw(st.integers(0, 24))
+    if pick == 0:
+        return draw(st.sampled_from(NON_FINITE))
+    if pick == 1:
+        return 0.0
+    return draw(st.floats(-1.0, 1.0)) * size
+
+
+@st.composite
+def call_sequences(draw, ident: str) -> list[tuple]:
+    """A call sequence the FMI 2.0 co-simulation state machine allows, invalid calls mixed in."""
+    d = DECLARED[ident]
+    sizes = INPUT_SIZES[ident]
+    real_inputs = [n for n, t in d.inputs.items() if t == "Real"]
+    variables = d.variables()
+    phase, set_up, set_since_step = "instantiated", False, False
+    states: list[bool] = []  # FMU states: live or freed
+    blobs = 0
+    calls: list[tuple] = []
+
+    def wrong_type():
+        name = draw(st.sampled_from(sorted(variables)))
+        kind = draw(st.sampled_from([t for t in FMI_TYPES if t != variables[name]]))
+        return ("wrong_type", draw(st.sampled_from(["get", "set"])) + kind, name)
+
+    def unknown_reference():
+        function = draw(st.sampled_from([g + t for g in ("get", "set") for t in FMI_TYPES]))
+        vr = draw(st.sampled_from([d.count, d.count + 1, 65535, 65536, 2**31, 2**32 - 1]))
+        return ("unknown_reference", function, vr)
+
+    for _ in range(draw(st.integers(1, MAX_CALLS))):
+        live = [i for i, alive in enumerate(states) if alive]
+        if phase == "instantiated":
+            menu = ["setup"] * 2 + ["parameters", "wrong_type", "unknown_reference", "reset"]
+            menu += ["enter"] * 4 if set_up else []
+        elif phase == "initialization":
+            menu = ["parameters", "input", "input", "wrong_type", "unknown_reference"]
+            menu += ["get", "reset"] + ["exit"] * 3
+        elif phase == "step":
+            menu = ["input"] * 5 + ["step"] * 6 + ["derivative", "get_state", "bad_step"]
+            menu += ["wrong_type", "unknown_reference", "terminate", "reset"]
+            menu += [] if set_since_step else ["get"] * 3
+            menu += ["set_state", "set_state", "free_state", "serialize"] if live else []
+            menu += ["deserialize"] if blobs else []
+        else:  # terminated
+            menu = ["get", "reset"]
+        kind = draw(st.sampled_from(menu))
+        if kind == "setup":
+            call = (
+                "setup",
+                draw(st.sampled_from([0.0, 0.0, 0.25])),
+                draw(st.sampled_from([None, 1e6])),
+            )
+            set_up = True
+        elif kind == "parameters":
+            call = ("parameters", draw(st.integers(0, len(PARAMETER_SETS[ident]) - 1)))
+        elif kind == "enter":
+            call, phase = ("enter",), "initialization"
+        elif kind == "exit":
+            call, phase = ("exit",), "step"
+        elif kind == "input":
+            name = draw(st.sampled_from(sorted(d.inputs)))
+            call, set_since_step = ("input", name, _value(draw, sizes[name])), True
+        elif kind == "derivative":
+            name = draw(st.sampled_from(real_inputs))
+            order = draw(st.sampled_from([1, 2]))
+            value = draw(st.floats(-1.0, 1.0)) * sizes[name] / step_of(ident) ** order
+            via = draw(st.sampled_from(["fmi2SetRealInputDerivatives", "carrier"]))
+            call, set_since_step = ("derivative", name, order, value, via), True
+        elif kind == "step":
+            call, set_since_step = ("step", draw(st.sampled_from(STEP_FACTORS))), False
+        elif kind == "get":
+            call = ("get",)
+        elif kind == "get_state":
+            call = ("get_state",)
+            states.append(True)
+        elif kind in ("set_state", "free_state", "serialize"):
+            i = draw(st.sampled_from(live))
+            call = (kind, i)
+            if kind == "free_state":
+                states[i] = False
+            blobs += kind == "serialize"
+        elif kind == "deserialize":
+            call = ("deserialize", draw(st.integers(0, blobs - 1)))
+            states.append(True)
+        elif kind == "terminate":
+            call, phase = ("terminate",), "terminated"
+        elif kind == "reset":
+            call, phase, set_up, set_since_step = ("reset",), "instantiated", False, False
+        elif kind == "wrong_type":
+            call = wrong_type()
+            set_since_step |= call[1].startswith("set")
+        elif kind == "unknown_reference":
+            call = unknown_reference()
+            set_since_step |= call[1].startswith("set")
+        else:
+            call = ("bad_step", draw(st.sampled_from(BAD_STEPS)))
+        calls.append(call)
+    return calls
+
+
+# --- the FMUs and their reference ------------------------------------------------------------
+
+
+def bundled_unit_class(unzipped: Path) -> type:
+    """The unit class inside an extracted FMU, imported from the FMU's own bundle (the
+    package pythonfmu imports when the FMU is instantiated in this process)."""
+    resources = unzipped / "resources"
+    script = next(resources.glob("*_slave_*.py")).read_text()
+    module, name = re.search(r"^from (\S+) import (\w+)\n\n\nclass", script, re.M).groups()
+    if str(resources) not in sys.path:
+        sys.path.append(str(resources))
+    return getattr(importlib.import_module(module), name)
+
+
+@dataclass
+class Rig:
+    """One FMU, extracted once: its variables, its unit class and its step."""
+
+    ident: str
+    unzipped: Path
+    guid: str
+    vr: dict[str, int]
+    fmi_type: dict[str, str]
+    unit_class: type
+    step: float
+    parameter_sets: list[dict]
+    instances: int = field(default=0)
+
+    def instantiate(self) -> FMU2Slave:
+        self.instances += 1
+        fmu = FMU2Slave(
+            guid=self.guid,
+            unzipDirectory=str(self.unzipped),
+            modelIdentifier=self.ident,
+            instanceName=f"fuzz{self.instances}",
+        )
+        fmu.instantiate()
+        return fmu
+
+
+@pytest.fixture(scope="module")
+def rigs(built_fmus, tmp_path_factory):
+    out = {}
+    for ident in FUZZED:
+        path = built_fmus[ident]
+        md = read_model_description(str(path))
+        unzipped = Path(extract(str(path), unzipdir=str(tmp_path_factory.mktemp(ident))))
+        variables = {v.name: v for v in md.modelVariables}
+        assert {n: v.type for n, v in variables.items()} == DECLARED[ident].variables()
+        unit_class = bundled_unit_class(unzipped)
+        sets = [{**unit_class.example_params(), **s} for s in PARAMETER_SETS[ident]]
+        for s in sets:
+            unit_class(**s)  # valid, or this raises naming the parameter
+        out[ident] = Rig(
+            ident,
+            unzipped,
+            md.guid,
+            {n: v.valueReference for n, v in variables.items()},
+            {n: v.type for n, v in variables.items()},
+            unit_class,
+            step_of(ident),
+            sets,
+        )
+    return out
+
+
+def _answer(function, *args):
+    """(status, result) of one fmpy call: fmi2OK, or the status fmpy raised for."""
+    try:
+        return fmi2OK, function(*args)
+    except FMICallException as exc:
+        return exc.status, None
+
+
+STATUS = {0: "fmi2OK", 1: "fmi2Warning", 2: "fmi2Discard", 3: "fmi2Error", 4: "fmi2Fatal"}
+
+
+def _bits(value) -> object:
+    """A value as compared: floats by their bits (-0.0 is not 0.0, nan is nan)."""
+    if isinstance(value, bytes):
+        return value.decode()
+    if isinstance(value, float):
+        return value.hex()
+    return value
+
+
+@dataclass
+class Snapshot:
+    """What an FMU state holds, for the reference: the unit, its time, the parameters."""
+
+    unit: object
+    time: float
+    params: dict
+
+
+class Session:
+    """One FMU instance driven by a call sequence, next to its reference."""
+
+    def __init__(self, rig: Rig):
+        self.rig = rig
+        self.fmu = rig.instantiate()
+        self.freed = False
+        self._fresh()
+        self.handles: list = []  # FMU states, None once freed
+        self.snapshots: list[Snapshot] = []
+        self.blobs: list[tuple[bytes, Snapshot]] = []
+        self.log: list[tuple] = []
+
+    def _fresh(self) -> None:
+        self.phase = "instantiated"
+        self.params = dict(self.rig.unit_class.example_params())
+        self.start = 0.0
+        self.initial_inputs: dict = {}
+        self.unit = None
+        self.time = math.nan
+
+    # --- checks -----------------------------------------------------------------------------
+    def fail(self, message: str) -> None:
+        calls = "\n".join(f"  {i:2d} {c!r}" for i, c in enumerate(self.log))
+        pytest.fail(f"{self.rig.ident}, call {len(self.log) - 1} {self.log[-1]!r}: {message}\n"
+                    f"sequence so far:\n{calls}")  # fmt: skip
+
+    def ok(self, function, *args):
+        status, result = _answer(function, *args)
+        if status != fmi2OK:
+            self.fail(f"a valid call answered {STATUS[status]}")
+        return result
+
+    def refused(self, allowed, function, *args) -> None:
+        status, _ = _answer(function, *args)
+        if status not in allowed:
+            want = " or ".join(STATUS[s] for s in allowed)
+            self.fail(f"an invalid call answered {STATUS[status]}, not {want}")
+
+    # --- the calls --------------------------------------------------------------------------
+    def run(self, calls: list[tuple]) -> None:
+        try:
+            for call in calls:
+                self.log.append(call)
+                getattr(self, f"_{call[0]}")(*call[1:])
+            self.log.append(("end",))
+            self._end()
+        finally:
+            if not self.freed:
+                self.fmu.freeInstance()
+
+    def _end(self) -> None:
+        if self.phase == "step":
+            self.ok(self.fmu.terminate)
+        for handle in self.handles:
+            if handle is not None:
+                self.ok(self.fmu.freeFMUstate, handle)
+        self.fmu.freeInstance()
+        self.freed = True
+
+    def _setup(self, start, stop) -> None:
+        self.ok(self.fmu.setupExperiment, None, start, stop)
+        self.start = start
+
+    def _parameters(self, k) -> None:
+        values = self.rig.parameter_sets[k]
+        for kind, setter in (("Real", self.fmu.setReal), ("Integer", self.fmu.setInteger),
+                             ("String", self.fmu.setString)):  # fmt: skip
+            names = [n for n in values if self.rig.fmi_type[n] == kind]
+            self.ok(setter, [self.rig.vr[n] for n in names], [values[n] for n in names])
+        self.params = dict(values)
+
+    def _enter(self) -> None:
+        self.ok(self.fmu.enterInitializationMode)
+        self.phase = "initialization"
+
+    def _initial_unit(self):
+        unit = self.rig.unit_class(**self.params)
+        unit.reset(self.start)
+        unit.set_inputs(self.initial_inputs)
+        return unit
+
+    def _exit(self) -> None:
+        self.ok(self.fmu.exitInitializationMode)
+        self.unit, self.time, self.phase = self._initial_unit(), self.start, "step"
+
+    def _input(self, name, value) -> None:
+        setter = self.fmu.setInteger if self.rig.fmi_type[name] == "Integer" else self.fmu.setReal
+        if isinstance(value, float) and not math.isfinite(value):
+            # FMI 2.0 lets fmi2SetReal refuse it (fmi2Discard or fmi2Error); accepted, the
+            # next step must fail, as the unit's does
+            status, _ = _answer(setter, [self.rig.vr[name]], [value])
+            if status not in (fmi2OK, fmi2Discard, fmi2Error):
+                self.fail(f"a non-finite input answered {STATUS[status]}")
+            if status != fmi2OK:
+                return
+        else:
+            self.ok(setter, [self.rig.vr[name]], [value])
+        if self.phase == "initialization":
+            self.initial_inputs[name] = value
+        else:
+            self.unit.set_input(name, value)
+
+    def _derivative(self, name, order, value, via) -> None:
+        if via == "carrier":
+            self.ok(self.fmu.setReal, [self.rig.vr[f"{name}_d{order}"]], [value])
+        else:
+            self.ok(self.fmu.setRealInputDerivatives, [self.rig.vr[name]], [order], [value])
+        self.unit.set_input_derivative(name, order, value)
+
+    def _step(self, factor) -> None:
+        h = factor * self.rig.step
+        try:
+            self.unit.do_step(self.time, h)
+        except self.unit_step_error():
+            self.refused((fmi2Discard, fmi2Error), self.fmu.doStep, self.time, h)
+            return
+        self.ok(self.fmu.doStep, self.time, h)
+        self.time = self.time + h
+
+    def unit_step_error(self) -> type:
+        return sys.modules[self.rig.unit_class.__module__].StepError
+
+    def _bad_step(self, kind) -> None:
+        h, t = self.rig.step, self.time
+        t, h = {"negative": (t, -h), "nan": (t, math.nan), "inf": (t, math.inf),
+                "time_nan": (math.nan, h), "time_behind": (t - h, h),
+                "time_ahead": (t + 2 * h, h)}[kind]  # fmt: skip
+        self.refused((fmi2Discard, fmi2Error), self.fmu.doStep, t, h)
+
+    def _expected(self) -> dict:
+        """Every variable readable in the current phase, as the reference has it."""
+        if self.phase == "initialization":  # outputs only (FMI 2.0, 4.2.4, condition 2)
+            unit, names = self._initial_unit(), ()
+        else:
+            unit, names = self.unit, self.params
+        try:
+            values = dict(unit.get_outputs())
+        except ValueError as exc:
+            self.fail(f"the unit has no outputs here ({exc}); the FMU would answer fmi2Fatal")
+        for name in names:
+            values[name] = self.params[name]
+        if self.phase != "initialization":
+            values.update(unit.u)
+            for name, order in DECLARED[self.rig.ident].carriers:
+                values[f"{name}_d{order}"] = unit.du.get(name, (0.0, 0.0))[order - 1]
+        return values
+
+    def _get(self) -> None:
+        want = self._expected()
+        got = {}
+        for kind, getter in (("Real", self.fmu.getReal), ("Integer", self.fmu.getInteger),
+                             ("String", self.fmu.getString)):  # fmt: skip
+            names = [n for n in want if self.rig.fmi_type[n] == kind]
+            if names:
+                got.update(
+                    zip(names, self.ok(getter, [self.rig.vr[n] for n in names]), strict=True)
+                )
+        cast = {"Real": float, "Integer": int, "String": str}
+        differ = {
+            n: (got[n], w)
+            for n, w in want.items()
+            if _bits(got[n]) != _bits(cast[self.rig.fmi_type[n]](w))
+        }
+        if differ:
+            self.fail(f"read (FMU, unit): {differ}")
+
+    def _snapshot(self) -> Snapshot:
+        return Snapshot(copy.deepcopy(self.unit), self.time, dict(self.params))
+
+    def _restore(self, snap: Snapshot) -> None:
+        self.unit, self.time, self.params = copy.deepcopy(snap.unit), snap.time, dict(snap.params)
+
+    def _get_state(self) -> None:
+        self.handles.append(self.ok(self.fmu.getFMUstate))
+        self.snapshots.append(self._snapshot())
+
+    def _set_state(self, i) -> None:
+        self.ok(self.fmu.setFMUstate, self.handles[i])
+        self._restore(self.snapshots[i])
+
+    def _free_state(self, i) -> None:
+        self.ok(self.fmu.freeFMUstate, self.handles[i])
+        self.handles[i] = None
+
+    def _serialize(self, i) -> None:
+        self.blobs.append((bytes(self.ok(self.fmu.serializeFMUstate, self.handles[i])),
+                           self.snapshots[i]))  # fmt: skip
+
+    def _deserialize(self, j) -> None:
+        blob, snap = self.blobs[j]
+        self.handles.append(self.ok(self.fmu.deSerializeFMUstate, blob))
+        self.snapshots.append(snap)
+
+    def _terminate(self) -> None:
+        self.ok(self.fmu.terminate)
+        self.phase = "terminated"
+
+    def _reset(self) -> None:
+        self.ok(self.fmu.reset)
+        self._fresh()
+
+    def _wrong_type(self, function, name) -> None:
+        vr = self.rig.vr[name]
+        args = ([vr],) if function.startswith("get") else ([vr], [_ANY[function[3:]]])
+        self.refused((fmi2Error,), getattr(self.fmu, function), *args)
+
+    def _unknown_reference(self, function, vr) -> None:
+        args = ([vr],) if function.startswith("get") else ([vr], [_ANY[function[3:]]])
+        self.refused((fmi2Error,), getattr(self.fmu, function), *args)
+
+
+_ANY = {"Real": 1.0, "Integer": 1, "Boolean": True, "String": "x"}
+
+FUZZ_SETTINGS = settings(
+    max_examples=EXAMPLES,
+    deadline=None,
+    suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large],
+)
+
+
+@pytest.mark.parametrize("ident", FUZZED)
+@FUZZ_SETTINGS
+@given_(data=st.data())
+def test_random_valid_call_sequences_match_the_unit_and_invalid_calls_change_nothing(
+    rigs, ident, data
+):
+    Session(rigs[ident]).run(data.draw(call_sequences(ident), label="calls"))
+
+
+# Sequences kept: the fuzz's failures (none so far besides those the strict xfails below
+# hold) and sequences through the paths most easily broken: a state serialised, the FMU
+# reset and initialised with other parameters, the state deserialised and restored; steps
+# refused for a non-finite input or wrong arguments, then stepping on; derivatives through
+# either route; a state restored twice and freed.
+KEPT = [
+    ("RubcosimJeffcottRotor", [
+        ("setup", 0.0, None), ("parameters", 2), ("enter",), ("input", "fx", 30.0), ("exit",),
+        ("step", 1.0), ("get_state",), ("serialize", 0), ("step", 2.0), ("get",), ("reset",),
+        ("setup", 0.25, 1e6), ("parameters", 1), ("enter",), ("exit",), ("step", 1.0),
+        ("deserialize", 0), ("set_state", 1), ("get",), ("step", 0.5), ("get",),
+        ("set_state", 0), ("step", 0.5), ("get",), ("free_state", 0), ("terminate",), ("get",),
+    ]),
+    ("RubcosimRigidStator", [
+        ("setup", 0.0, None), ("parameters", 1), ("enter",), ("exit",), ("input", "x", 1.1e-4),
+        ("input", "vx", 0.04), ("step", 1.0), ("get",), ("input", "y", math.nan),
+        ("step", 1.0), ("get",), ("bad_step", "time_behind"), ("input", "y", 1e-5),
+        ("input", "contact_mode", 3), ("step", 1.0), ("get",), ("bad_step", "nan"),
+        ("wrong_type", "getInteger", "gap"), ("unknown_reference", "setReal", 65536),
+        ("step", 2.0), ("get",),
+    ]),
+    ("RubcosimDelayedFeedbackController", [
+        ("setup", 0.0, None), ("parameters", 1), ("enter",), ("input", "x", 1e-5), ("get",),
+        ("exit",), ("step", 1.0), ("get_state",), ("derivative", "x", 1, 0.1, "carrier"),
+        ("derivative", "y", 2, -300.0, "fmi2SetRealInputDerivatives"), ("step", 1.0), ("get",),
+        ("step", 2.0), ("set_state", 0), ("step", 1.0), ("get",), ("set_state", 0),
+        ("step", 1.0), ("get",), ("free_state", 0),
+    ]),
+    ("RubcosimImpactOscillator", [
+        ("setup", 0.0, None), ("parameters", 2), ("enter",), ("exit",), ("input", "force", 1.5),
+        ("step", 2.0), ("get_state",), ("step", 3.0), ("get",), ("bad_step", "negative"),
+        ("bad_step", "inf"), ("bad_step", "time_ahead"), ("set_state", 0), ("get",),
+        ("step", 1.0), ("get",), ("wrong_type", "setString", "x0"), ("terminate",), ("get",),
+    ]),
+]  # fmt: skip
+
+
+@pytest.mark.parametrize(
+    ("ident", "calls"), KEPT, ids=[f"{k}-{i}" for i, (k, _) in enumerate(KEPT)]
+)
+def test_kept_call_sequences_match_the_unit(rigs, ident, calls):
+    Session(rigs[ident]).run(calls)
+
+
+def test_the_kept_sequences_are_ones_the_fuzz_can_draw():
+    # every call of KEPT is one call_sequences makes (the same vocabulary and arguments)
+    known = {"setup", "parameters", "enter", "exit", "input", "derivative", "step", "get",
+             "get_state", "set_state", "free_state", "serialize", "deserialize", "terminate",
+             "reset", "wrong_type", "unknown_reference", "bad_step"}  # fmt: skip
+    for ident, calls in KEPT:
+        assert ident in FUZZED
+        for call in calls:
+            assert call[0] in known, call
+            if call[0] == "step":
+                assert call[1] in STEP_FACTORS
+            if call[0] == "bad_step":
+                assert call[1] in BAD_STEPS
+
+
+# --- the invalid calls the FMUs answer wrongly today --------------------------------------------
+# Each case runs in a subprocess on fresh instances (an fmi2Fatal from pythonfmu leaves the
+# process one garbage collection away from a segfault), for every FMU in FUZZED, and prints
+# one JSON line per FMU: whether the answer is the one FMI 2.0 requires, and what came.
+
+KNOWN_SCRIPT = r"""
+import gc, json, math, os, sys
+gc.disable()  # a dangling reference left by an fmi2Fatal must not be collected mid-run
+from fmpy import extract, read_model_description
+from fmpy.fmi1 import FMICallException
+from fmpy.fmi2 import FMU2Slave
+
+NAMES = {0: "fmi2OK", 1: "fmi2Warning", 2: "fmi2Discard", 3: "fmi2Error", 4: "fmi2Fatal"}
+specs = json.loads(sys.argv[1])
+
+
+def answer(function, *args):
+    try:
+        return 0, function(*args)
+    except FMICallException as exc:
+        return exc.status, None
+
+
+class Fmu:
+    def __init__(self, ident, spec):
+        self.ident, self.spec, self.n = ident, spec, 0
+        md = read_model_description(spec["path"])
+        self.md, self.unzipped = md, extract(spec["path"])
+        self.vr = {v.name: v.valueReference for v in md.modelVariables}
+        self.var = {v.name: v for v in md.modelVariables}
+        self.h = spec["step"]
+
+    def new(self, start=True, stop=None):
+        self.n += 1
+        f = FMU2Slave(guid=self.md.guid, unzipDirectory=self.unzipped,
+                      modelIdentifier=self.ident, instanceName=f"known{self.n}")
+        f.instantiate()
+        if start:
+            f.setupExperiment(startTime=0.0, stopTime=stop)
+            f.enterInitializationMode()
+            f.exitInitializationMode()
+            f.doStep(0.0, self.h)
+        return f
+
+    def outputs(self, f):
+        names = [n for n, v in self.var.items() if v.causality == "output" and v.type == "Real"]
+        return f.getReal([self.vr[n] for n in names])
+
+
+def refused_with_error(status):
+    return status == 3
+
+
+def case_set_an_output(u):
+    out = next(n for n, v in u.var.items() if v.causality == "output")
+    setter = {"Real": "setReal", "Integer": "setInteger"}[u.var[out].type]
+    status, _ = answer(getattr(u.new(), setter), [u.vr[out]], [1])
+    return refused_with_error(status), f"{setter}({out}) in step mode: {NAMES[status]}"
+
+
+def _nan_derivative(u, via):
+    f = u.new()
+    name = u.spec["real_input"]
+    if via == "carrier":
+        status, _ = answer(f.setReal, [u.vr[name + "_d1"]], [math.nan])
+    else:
+        status, _ = answer(f.setRealInputDerivatives, [u.vr[name]], [1], [math.nan])
+    then = None
+    if status == 0:  # accepted: the next step must be refused, as for a non-finite input
+        then, _ = answer(f.doStep, u.h, u.h)
+    good = status in (2, 3) or (status == 0 and then in (2, 3))
+    text = f"{via} {name} order 1 = nan: {NAMES[status]}"
+    return good, text + (f", then fmi2DoStep: {NAMES[then]}" if then is not None else "")
+
+
+def case_nan_input_derivative(u):
+    return _nan_derivative(u, "fmi2SetRealInputDerivatives")
+
+
+def case_nan_derivative_carrier(u):
+    return _nan_derivative(u, "carrier")
+
+
+def case_deserialize_bytes_that_are_no_state(u):
+    blob = bytes(u.new().serializeFMUstate(u.new().getFMUstate()))
+    got = []
+    for garbage in (b"", b"garbage", blob[:-5]):
+        status, _ = answer(u.new().deSerializeFMUstate, garbage)
+        got.append((garbage[:12], NAMES[status]))
+    return all(s == "fmi2Error" for _, s in got), f"fmi2DeSerializeFMUstate: {got}"
+
+
+def case_set_a_state_that_is_no_state(u):
+    f = u.new()
+    status, state = answer(f.deSerializeFMUstate, b"{}")
+    if status != 0:
+        return refused_with_error(status), f"fmi2DeSerializeFMUstate(b'{{}}'): {NAMES[status]}"
+    status, _ = answer(f.setFMUstate, state)
+    text = f"fmi2DeSerializeFMUstate(b'{{}}'): fmi2OK, then fmi2SetFMUstate: {NAMES[status]}"
+    return refused_with_error(status), text
+
+
+def _fixed_parameter_in_step_mode(u, same):
+    name, value = u.spec["parameter"]
+    if same:
+        value = u.var[name].start
+        value = float(value) if u.var[name].type == "Real" else value
+    f, twin = u.new(), u.new()
+    setter = {"Real": f.setReal, "Integer": f.setInteger, "String": f.setString}[u.var[name].type]
+    status, _ = answer(setter, [u.vr[name]], [value])
+    then, _ = answer(f.doStep, u.h, u.h)
+    twin.doStep(u.h, u.h)
+    same_outputs = then == 0 and u.outputs(f) == u.outputs(twin)
+    text = (f"set {name} = {value!r} after a step: {NAMES[status]}; then fmi2DoStep from the "
+            f"FMU's time: {NAMES[then]}, outputs {'as' if same_outputs else 'NOT as'} an "
+            "instance that never saw the call")
+    return refused_with_error(status) and same_outputs, text
+
+
+def case_fixed_parameter_set_in_step_mode_to_another_value(u):
+    return _fixed_parameter_in_step_mode(u, same=False)
+
+
+def case_fixed_parameter_set_in_step_mode_to_its_own_value(u):
+    return _fixed_parameter_in_step_mode(u, same=True)
+
+
+def case_step_past_the_stop_time(u):
+    f = u.new(stop=u.h)  # initialised with stopTime = h and stepped to h
+    status, _ = answer(f.doStep, u.h, u.h)
+    return refused_with_error(status), f"stopTime {u.h}, fmi2DoStep({u.h}, {u.h}): {NAMES[status]}"
+
+
+def case_step_of_zero_size(u):
+    got = []
+    for h in (0.0, -0.0):
+        status, _ = answer(u.new().doStep, u.h, h)
+        got.append((h, NAMES[status]))
+    return all(s == "fmi2Error" for _, s in got), f"fmi2DoStep(t, h): {got}"
+
+
+def case_invalid_step_arguments_are_fmi2error_not_fmi2discard(u):
+    got = []
+    t, h = u.h, u.h
+    for label, args in (("h < 0", (t, -h)), ("h nan", (t, math.nan)), ("h inf", (t, math.inf)),
+                        ("t nan", (math.nan, h)), ("t behind", (0.0, h)),
+                        ("t ahead", (t + 2 * h, h))):
+        status, _ = answer(u.new().doStep, *args)
+        got.append((label, NAMES[status]))
+    return all(s == "fmi2Error" for _, s in got), f"fmi2DoStep: {got}"
+
+
+def case_last_successful_time_after_a_step_from_a_wrong_time(u):
+    f = u.new()  # at t = h
+    status, _ = answer(f.doStep, 5 * u.h, u.h)
+    last = f.getRealStatus(2) if status == 2 else None  # fmi2LastSuccessfulTime
+    good = status == 3 or last == u.h
+    return good, (f"fmi2DoStep({5 * u.h}, {u.h}) at t = {u.h}: {NAMES[status]}; "
+                  f"fmi2LastSuccessfulTime = {last}")
+
+
+def case_input_derivative_set_before_initialisation(u):
+    name = u.spec["real_input"]
+    d1 = u.spec["derivative"]
+    results = {}
+    for where in ("instantiated", "initialization", "step"):
+        f = u.new(start=False)
+        if where == "instantiated":
+            f.setRealInputDerivatives([u.vr[name]], [1], [d1])
+        f.setupExperiment(startTime=0.0)
+        f.enterInitializationMode()
+        if where == "initialization":
+            f.setRealInputDerivatives([u.vr[name]], [1], [d1])
+        f.exitInitializationMode()
+        if where == "step":
+            f.setRealInputDerivatives([u.vr[name]], [1], [d1])
+        f.doStep(0.0, u.h)
+        results[where] = u.outputs(f)
+    good = results["instantiated"] == results["step"] == results["initialization"]
+    return good, (f"fmi2SetRealInputDerivatives({name}, 1, {d1}) while instantiated or in "
+                  "Initialization Mode: " + ("reaches" if good else "does NOT reach")
+                  + " the first step (fmi2OK, outputs as if it was never set)")
+
+
+def case_state_taken_in_initialization_mode(u):
+    name, value, output = u.spec["initial_value"]
+    f = u.new(start=False)
+    f.setupExperiment(startTime=0.0)
+    f.enterInitializationMode()
+    f.setReal([u.vr[name]], [value])
+    state = f.getFMUstate()
+    read = f.getReal([u.vr[output]])[0]  # at the time of the state
+    f.setReal([u.vr[name]], [2 * value])
+    f.setFMUstate(state)
+    back = f.getReal([u.vr[output]])[0]
+    return back == read, (f"Initialization Mode: {name} = {value}, fmi2GetFMUstate, "
+                          f"{output} reads {read}; {name} = {2 * value}, fmi2SetFMUstate: "
+                          f"{output} reads {back}")
+
+
+def case_invalid_parameter_at_exit_initialization_mode(u):
+    name, bad = u.spec["bad_parameter"]
+    f = u.new(start=False)
+    f.setReal([u.vr[name]], [bad])
+    f.setupExperiment(startTime=0.0)
+    f.enterInitializationMode()
+    status, _ = answer(f.exitInitializationMode)
+    return refused_with_error(status), f"{name} = {bad}: fmi2ExitInitializationMode {NAMES[status]}"
+
+
+CASES = [name for name in dict(globals()) if name.startswith("case_")]
+fmus = {ident: Fmu(ident, spec) for ident, spec in specs.items()}
+for case in CASES:
+    for ident, u in fmus.items():
+        try:
+            good, text = globals()[case](u)
+        except Exception as exc:  # fmpy raising where the case expected fmi2OK
+            good, text = False, f"{type(exc).__name__}: {exc}"
+        row = {"case": case[5:], "ident": ident, "good": good, "text": text}
+        print(json.dumps(row), flush=True)
+
+# last, as it may end the process: two refused calls on one instance, then a collection
+u = next(iter(fmus.values()))
+f = u.new()
+got = [NAMES[answer(f.deSerializeFMUstate, b"garbage")[0]] for _ in range(2)]
+gc.collect()
+f.doStep(u.h, u.h)
+row = {"case": "two_refused_calls_on_one_instance", "ident": u.ident,
+       "good": got == ["fmi2Error"] * 2,
+       "text": f"fmi2DeSerializeFMUstate twice: {got}, process alive after gc.collect()"}
+print(json.dumps(row), flush=True)
+os._exit(0)  # no interpreter teardown over the references an fmi2Fatal left dangling
+"""
+
+KNOWN = {
+    "set_an_output": "fmi2SetReal/fmi2SetInteger on an output answers fmi2Fatal (pythonfmu: the "
+    "output has no setter, a Python exception); FMI 2.0 section 2.1.2 requires fmi2Error",
+    "nan_input_derivative": "fmi2SetRealInputDerivatives with a NaN answers fmi2Fatal "
+    "(Unit.set_input_derivative raises ValueError inside the carrier's setter)",
+    "nan_derivative_carrier": "fmi2SetReal of NaN on a tunable <input>_d1 carrier answers "
+    "fmi2Fatal (the same ValueError)",
+    "deserialize_bytes_that_are_no_state": "fmi2DeSerializeFMUstate of bytes that are not a "
+    "serialised state (empty, garbage, truncated) answers fmi2Fatal, not fmi2Error",
+    "set_a_state_that_is_no_state": "fmi2DeSerializeFMUstate(b'{}') answers fmi2OK and the "
+    "fmi2SetFMUstate of that state fmi2Fatal (KeyError in UnitSlave._set_fmu_state)",
+    "fixed_parameter_set_in_step_mode_to_another_value": "fmi2SetReal on a fixed parameter "
+    "after initialisation answers fmi2OK and silently rebuilds the unit at the start time: "
+    "the next fmi2DoStep from the FMU's time is fmi2Discard; FMI 2.0 (4.2.4 condition 6, "
+    "2.1.2) requires fmi2Error and no change",
+    "fixed_parameter_set_in_step_mode_to_its_own_value": "fmi2SetReal on a fixed parameter "
+    "after initialisation, to the value it has, answers fmi2OK (harmless, but not allowed in "
+    "step mode: fmi2Error); tests/test_fmus.py::test_a_state_restored_right_after_"
+    "instantiation_is_where_the_next_step_starts asserts fmi2OK for it",
+    "step_past_the_stop_time": "fmi2DoStep past the stopTime given to fmi2SetupExperiment "
+    "answers fmi2OK; FMI 2.0 section 2.1.6 requires fmi2Error (UnitSlave.setup_experiment "
+    "ignores stopTime)",
+    "step_of_zero_size": "fmi2DoStep with communicationStepSize 0.0 or -0.0 answers fmi2OK; "
+    "FMI 2.0 section 4.2.2 requires a step > 0 (rubcosim's own master takes zero-length "
+    "steps: orchestrator/master.py, event_steps.py)",
+    "invalid_step_arguments_are_fmi2error_not_fmi2discard": "fmi2DoStep with h < 0, a "
+    "non-finite h or t, or t not the FMU's time answers fmi2Discard, which FMI 2.0 (4.2.2) "
+    "means 'computed only a subinterval' (see fmi2LastSuccessfulTime); a step 'not carried "
+    "out at all' is fmi2Error",
+    "last_successful_time_after_a_step_from_a_wrong_time": "after fmi2DoStep from a wrong time "
+    "(fmi2Discard), fmi2GetRealStatus(fmi2LastSuccessfulTime) answers the wrong time the "
+    "master passed, not the end of the last step (pythonfmu sets it to "
+    "currentCommunicationPoint)",
+    "input_derivative_set_before_initialisation": "input derivatives set while instantiated "
+    "or in Initialization Mode (allowed, FMI 2.0 4.2.4) are dropped by the rebuild at "
+    "fmi2ExitInitializationMode (UnitSlave._rebuild sets the inputs again, which clears them)",
+    "state_taken_in_initialization_mode": "an FMU state got in Initialization Mode after a "
+    "parameter changed holds the new parameter but the unit built from the old one (unless an "
+    "output was read before): restoring it reads an output no one ever read",
+    "invalid_parameter_at_exit_initialization_mode": "an invalid parameter value is refused by "
+    "fmi2ExitInitializationMode with fmi2Fatal (the re-raised ParameterError), not fmi2Error",
+    "two_refused_calls_on_one_instance": "two Python exceptions on one instance (here two "
+    "fmi2DeSerializeFMUstate of garbage) crash the process with SIGSEGV (pythonfmu's "
+    "handle_py_exception drops references it does not own); one is enough if the garbage "
+    "collector runs before the next call",
+}
+
+
+# per FMU: a fixed parameter to change after initialisation, and one that sets an output's
+# initial value (parameter, value, output)
+CHANGED_PARAMETER = {
+    "RubcosimImpactOscillator": ("damping", 0.5),
+    "RubcosimJeffcottRotor": ("damping", 100.0),
+    "RubcosimRigidStator": ("friction", 0.3),
+    "RubcosimDelayedFeedbackController": ("gain", 5e4),
+}
+INITIAL_VALUE = {
+    "RubcosimImpactOscillator": ("x0", 0.25, "x"),
+    "RubcosimJeffcottRotor": ("x0", 1e-5, "x"),
+    "RubcosimRigidStator": ("x_offset", 2e-5, "gap"),
+    "RubcosimDelayedFeedbackController": ("delay", 3.7e-4, "current_delay"),
+}
+
+
+def _known_spec(ident: str, path: Path) -> dict:
+    unit = UNIT_CLASSES[KEY_OF[ident]]
+    real_input = next(s.name for s in unit.inputs if s.kind == "real")
+    bad = next(p for p in unit.params_spec if p.kind == "real" and math.isfinite(p.low))
+    return {
+        "path": str(path),
+        "step": step_of(ident),
+        "real_input": real_input,
+        "derivative": INPUT_SIZES[ident][real_input] / step_of(ident),
+        "parameter": CHANGED_PARAMETER[ident],
+        "bad_parameter": (bad.name, bad.low - 1.0),
+        "initial_value": INITIAL_VALUE[ident],
+    }
+
+
+@pytest.fixture(scope="module")
+def known_answers(built_fmus, tmp_path_factory):
+    """Case -> [(FMU, whether the answer is the one FMI 2.0 requires, what came)]."""
+    specs = {ident: _known_spec(ident, built_fmus[ident]) for ident in FUZZED}
+    proc = subprocess.run(
+        [sys.executable, "-c", KNOWN_SCRIPT, json.dumps(specs)],
+        capture_output=True, text=True, timeout=300, check=False,
+        cwd=tmp_path_factory.mktemp("known"),
+    )  # fmt: skip
+    answers: dict[str, list] = {case: [] for case in KNOWN}
+    for line in proc.stdout.splitlines():
+        if line.startswith('{"case"'):
+            row = json.loads(line)
+            answers[row["case"]].append((row["ident"], row["good"], row["text"]))
+    for rows in answers.values():
+        if not rows:  # the process ended before the case: a crash is an answer too
+            rows.append(("-", False, f"no answer: the process ended with {proc.returncode}, "
+                         f"stderr {proc.stderr[-500:]!r}"))  # fmt: skip
+    return answers
+
+
+@pytest.mark.parametrize(
+    "case",
+    [
+        pytest.param(c, marks=pytest.mark.xfail(strict=True, reason=r), id=c)
+        for c, r in KNOWN.items()
+    ],
+)
+def test_an_invalid_call_gets_the_answer_fmi_2_requires(known_answers, case):
+    wrong = [f"{ident}: {text}" for ident, good, text in known_answers[case] if not good]
+    assert not wrong, "\n".join(wrong)
+
+
+def test_every_known_case_is_run():
+    cases = {m for m in re.findall(r"^def case_(\w+)\(", KNOWN_SCRIPT, re.M)}
+    assert cases | {"two_refused_calls_on_one_instance"} == set(KNOWN)
