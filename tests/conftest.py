@@ -21,6 +21,7 @@ def built_fmus(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
 # end with one of them alone on a long test while the other has nothing left.
 LONGEST_FIRST = (
     "test_fmus.py",
+    "test_fmi_sequences.py",
     "test_flat_master.py",
     "test_cosim.py",
     "test_etdas.py",
