@@ -6,7 +6,7 @@ STAMP := $(VENV)/.installed-stamp
 FLAGSHIP ?= scenarios/jeffcott_rigid_stator.toml
 OUT ?= results/jeffcott_rigid_stator
 
-.PHONY: setup run test lint format bench bench-stale bench-engines bench-analysis bench-basins gallery clean
+.PHONY: setup run test fuzz lint format bench bench-stale bench-engines bench-analysis bench-basins gallery clean
 
 setup: $(STAMP)
 
@@ -42,6 +42,11 @@ format: $(STAMP)
 
 test: lint $(WARM)
 	$(PY) -m pytest -n 2 --dist worksteal --durations=15
+
+# the FMI call-sequence fuzzing at length: 10000 sequences per FMU (about 20 min; the
+# test run draws 60)
+fuzz: $(STAMP)
+	RUBCOSIM_FUZZ_EXAMPLES=10000 $(PY) -m pytest -q tests/test_fmi_sequences.py
 
 # every benchmark the documents quote (benchmarks/catalog.py), then their tables copied
 # into README.md and BENCHMARKS.md; `make bench-stale` re-runs only the stale ones
