@@ -258,11 +258,12 @@ class Unit:
 
     @staticmethod
     def state_to_bytes(snapshot: Mapping[str, Any]) -> bytes:
-        """Serialise a snapshot; floats keep every bit (shortest round-trip repr)."""
+        """Serialise a snapshot; floats keep every bit (shortest round-trip repr), arrays
+        their shape (an empty history of shape (0, 6) included)."""
 
         def encode(value: Any) -> Any:
             if isinstance(value, np.ndarray):
-                return {"__array__": value.tolist()}
+                return {"__array__": value.tolist(), "shape": list(value.shape)}
             if isinstance(value, dict):
                 return {k: encode(v) for k, v in value.items()}
             if isinstance(value, np.floating | np.integer):
@@ -275,14 +276,15 @@ class Unit:
     def state_from_bytes(data: bytes) -> dict[str, Any]:
         def decode(value: Any) -> Any:
             if isinstance(value, dict):
-                if set(value) == {"__array__"}:
-                    return np.array(value["__array__"], dtype=float)
+                if "__array__" in value and set(value) <= {"__array__", "shape"}:
+                    array = np.array(value["__array__"], dtype=float)
+                    return array.reshape(value["shape"]) if "shape" in value else array
                 return {k: decode(v) for k, v in value.items()}
             return value
 
         try:
             return decode(json.loads(data.decode("utf-8")))
-        except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+        except (UnicodeDecodeError, json.JSONDecodeError, ValueError, TypeError) as exc:
             raise ValueError(f"not a serialised unit state: {exc}") from exc
 
 

@@ -34,7 +34,9 @@ from rubcosim.components.unit import Unit
 from .native import LOADER_SOURCE, install_loader
 
 COMPONENTS_DIR = Path(components.__file__).resolve().parent
+# the slave and its variable access, bundled into every FMU next to the components
 ADAPTER = Path(__file__).resolve().parent / "fmi_slave.py"
+ADAPTERS = (ADAPTER, ADAPTER.with_name("fmi_access.py"))
 DEFAULT_OUT = Path("build") / "fmus"
 
 # (role, type) -> FMI model identifier, as each unit type declares it
@@ -121,7 +123,7 @@ def fmu_specs() -> list[FmuSpec]:
 
 def bundled_sources() -> list[Path]:
     """The files copied into every FMU's bundle package."""
-    return [*sorted(COMPONENTS_DIR.glob("*.py")), ADAPTER]
+    return [*sorted(COMPONENTS_DIR.glob("*.py")), *ADAPTERS]
 
 
 def source_digest() -> str:

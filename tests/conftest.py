@@ -20,14 +20,10 @@ def built_fmus(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
 # longest first: run first, so that the two workers of `make test` (pytest -n 2) do not
 # end with one of them alone on a long test while the other has nothing left.
 LONGEST_FIRST = (
-    # first of all: Ecos and the C host load FMUs into a process where no refused FMI call
-    # has gone through pythonfmu's exception path yet (it drops references it does not
-    # own; after other modules' FMU tests, an elastic stator instance failed to find its
-    # slave class and Ecos crashed: tests/test_fmi_sequences.py's first finding)
-    "test_fmus_in_other_tools.py",
-    "test_fmus.py",
-    "test_fmi_sequences.py",
     "test_flat_master.py",
+    "test_fmus.py",
+    "test_fmus_in_other_tools.py",
+    "test_fmi_sequences.py",
     "test_cosim.py",
     "test_etdas.py",
     "test_api.py",

@@ -97,9 +97,6 @@ typedef struct {
 /* ------------------------------------------------------------------------------------------ */
 
 #define RCS_STATUS_FUNCTIONS(X)                                                                  \
-    X(fmi2SetDebugLogging,                                                                       \
-      (fmi2Component c, fmi2Boolean loggingOn, size_t nCategories, const fmi2String categories[]), \
-      (c, loggingOn, nCategories, categories))                                                   \
     X(fmi2SetupExperiment,                                                                       \
       (fmi2Component c, fmi2Boolean toleranceDefined, fmi2Real tolerance, fmi2Real startTime,    \
        fmi2Boolean stopTimeDefined, fmi2Real stopTime),                                          \
@@ -116,9 +113,6 @@ typedef struct {
     X(fmi2SerializeFMUstate,                                                                     \
       (fmi2Component c, fmi2FMUstate state, fmi2Byte serializedState[], size_t size),           \
       (c, state, serializedState, size))                                                         \
-    X(fmi2DeSerializeFMUstate,                                                                   \
-      (fmi2Component c, const fmi2Byte serializedState[], size_t size, fmi2FMUstate * state),    \
-      (c, serializedState, size, state))                                                         \
     X(fmi2GetDirectionalDerivative,                                                              \
       (fmi2Component c, const fmi2ValueReference vUnknown_ref[], size_t nUnknown,                \
        const fmi2ValueReference vKnown_ref[], size_t nKnown, const fmi2Real dvKnown[],           \
@@ -144,6 +138,15 @@ typedef struct {
       (c, s, value))
 
 
+/* Forwarded with a check of their own (below the generic forwarders). */
+#define RCS_CHECKED_STATUS_FUNCTIONS(X)                                                          \
+    X(fmi2SetDebugLogging,                                                                       \
+      (fmi2Component c, fmi2Boolean loggingOn, size_t nCategories, const fmi2String categories[]), \
+      (c, loggingOn, nCategories, categories))                                                   \
+    X(fmi2DeSerializeFMUstate,                                                                   \
+      (fmi2Component c, const fmi2Byte serializedState[], size_t size, fmi2FMUstate * state),    \
+      (c, serializedState, size, state))
+
 /* The value accessors, with the FMI type of the variables they take: checked against the
  * model description (see check_types) before they are forwarded. */
 #define RCS_VALUE_FUNCTIONS(X)                                                                   \
@@ -166,6 +169,7 @@ typedef void (*fmi2FreeInstance_t)(fmi2Component);
 #define RCS_TYPEDEF(name, params, args) typedef fmi2Status(*name##_t) params;
 #define RCS_TYPEDEF_V(name, params, args, type) RCS_TYPEDEF(name, params, args)
 RCS_STATUS_FUNCTIONS(RCS_TYPEDEF)
+RCS_CHECKED_STATUS_FUNCTIONS(RCS_TYPEDEF)
 RCS_VALUE_FUNCTIONS(RCS_TYPEDEF_V)
 #undef RCS_TYPEDEF_V
 #undef RCS_TYPEDEF
@@ -179,6 +183,7 @@ static struct {
 #define RCS_MEMBER(name, params, args) name##_t name;
 #define RCS_MEMBER_V(name, params, args, type) name##_t name;
     RCS_STATUS_FUNCTIONS(RCS_MEMBER)
+    RCS_CHECKED_STATUS_FUNCTIONS(RCS_MEMBER)
     RCS_VALUE_FUNCTIONS(RCS_MEMBER_V)
 #undef RCS_MEMBER_V
 #undef RCS_MEMBER
@@ -861,6 +866,7 @@ static int load_export_library(const char *resources, msgbuf *err)
 #define RCS_RESOLVE_X(name, params, args) RCS_RESOLVE(name);
 #define RCS_RESOLVE_V(name, params, args, type) RCS_RESOLVE(name);
     RCS_STATUS_FUNCTIONS(RCS_RESOLVE_X)
+    RCS_CHECKED_STATUS_FUNCTIONS(RCS_RESOLVE_X)
     RCS_VALUE_FUNCTIONS(RCS_RESOLVE_V)
 #undef RCS_RESOLVE_V
 #undef RCS_RESOLVE_X
@@ -902,6 +908,122 @@ RCS_EXPORT const char *fmi2GetTypesPlatform(void)
 RCS_EXPORT const char *fmi2GetVersion(void)
 {
     return g_api.fmi2GetVersion ? g_api.fmi2GetVersion() : "2.0";
+}
+
+/* ------------------------------------------------------------------------------------------ */
+/* Refusals: an error the slave logged makes the call's answer fmi2Error                        */
+/* ------------------------------------------------------------------------------------------ */
+
+/* pythonfmu answers a Python exception with fmi2Fatal and drops references it does not own
+ * (a later call may crash the process), and it has no other way for the slave to refuse a
+ * call.  So the slave (fmi_slave.py) never raises: it refuses a call by logging the reason
+ * at fmi2Error and returning normally.  pythonfmu is given the host's callbacks with the
+ * logger routed through rcs_logger, which notes on the calling thread that an error was
+ * logged; the forwarders below answer such a call with fmi2Error where pythonfmu answered
+ * fmi2OK or fmi2Warning.  (A failed step stays fmi2Discard.)  pythonfmu passes each
+ * message as the format argument with no arguments: it is forwarded as text.
+ * pythonfmu logs nothing at all when logging is off, so it always runs with logging on;
+ * the host's choice (fmi2Instantiate's loggingOn, fmi2SetDebugLogging) is applied here:
+ * with logging off, only warnings and errors reach the host's logger. */
+typedef struct {
+    fmi2CallbackFunctions callbacks; /* what pythonfmu gets; its componentEnvironment is this */
+    const fmi2CallbackFunctions *host;
+    int logging_on; /* the host's */
+} rcs_env;
+
+static __thread int t_error_logged;
+
+static void rcs_logger(fmi2ComponentEnvironment env, fmi2String instanceName, fmi2Status status,
+                       fmi2String category, fmi2String message, ...)
+{
+    if (status >= fmi2Error && status != fmi2Pending) t_error_logged = 1;
+    const rcs_env *e = env;
+    if (e != NULL && !e->logging_on && status < fmi2Warning) return;
+    if (e != NULL && e->host != NULL && e->host->logger != NULL)
+        log_message(e->host, instanceName, status, category ? category : "",
+                    message ? message : "");
+}
+
+static rcs_env *routed_callbacks(const fmi2CallbackFunctions *host, fmi2Boolean loggingOn)
+{
+    rcs_env *e = calloc(1, sizeof *e);
+    if (e == NULL || host == NULL) return e;
+    e->logging_on = loggingOn;
+    fmi2CallbackFunctions routed = {rcs_logger, host->allocateMemory, host->freeMemory,
+                                    host->stepFinished, e};
+    memcpy(&e->callbacks, &routed, sizeof routed);
+    e->host = host;
+    return e;
+}
+
+/* The answer to a forwarded call, which started with t_error_logged = 0. */
+static fmi2Status answer(fmi2Status status)
+{
+    return t_error_logged && status <= fmi2Warning ? fmi2Error : status;
+}
+
+/* The host's logger, instance name and routed callbacks of each live instance. */
+#define RCS_MAX_INSTANCES 1024
+static struct {
+    fmi2Component c;
+    const fmi2CallbackFunctions *functions;
+    char *name;
+    rcs_env *env;
+} g_inst[RCS_MAX_INSTANCES];
+
+static void remember_instance(fmi2Component c, const fmi2CallbackFunctions *functions,
+                              fmi2String name, rcs_env *env)
+{
+    pthread_mutex_lock(&g_lock);
+    for (size_t i = 0; i < RCS_MAX_INSTANCES; i++) {
+        if (g_inst[i].c == NULL) {
+            g_inst[i].c = c;
+            g_inst[i].functions = functions;
+            g_inst[i].name = strdup(name ? name : "");
+            g_inst[i].env = env;
+            env = NULL;
+            break;
+        }
+    }
+    pthread_mutex_unlock(&g_lock);
+    /* more live instances than slots: the routed callbacks leak rather than dangle */
+    (void)env;
+}
+
+/* Forget an instance; returns its routed callbacks, to free once pythonfmu has let go. */
+static rcs_env *forget_instance(fmi2Component c)
+{
+    rcs_env *env = NULL;
+    pthread_mutex_lock(&g_lock);
+    for (size_t i = 0; i < RCS_MAX_INSTANCES; i++) {
+        if (g_inst[i].c == c) {
+            free(g_inst[i].name);
+            env = g_inst[i].env;
+            g_inst[i].c = NULL;
+            g_inst[i].name = NULL;
+            g_inst[i].env = NULL;
+            break;
+        }
+    }
+    pthread_mutex_unlock(&g_lock);
+    return env;
+}
+
+/* Log `text` at fmi2Error through the host's logger of instance c. */
+static void log_refusal(fmi2Component c, const char *text)
+{
+    const fmi2CallbackFunctions *functions = NULL;
+    char name[256] = "";
+    pthread_mutex_lock(&g_lock);
+    for (size_t k = 0; k < RCS_MAX_INSTANCES; k++) {
+        if (g_inst[k].c == c) {
+            functions = g_inst[k].functions;
+            snprintf(name, sizeof name, "%s", g_inst[k].name ? g_inst[k].name : "");
+            break;
+        }
+    }
+    pthread_mutex_unlock(&g_lock); /* the host's logger runs outside the lock */
+    log_message(functions, name, fmi2Error, "logStatusError", text);
 }
 
 /* ------------------------------------------------------------------------------------------ */
@@ -952,6 +1074,7 @@ RCS_EXPORT fmi2Status fmi2SetRealInputDerivatives(fmi2Component c, const fmi2Val
     fmi2ValueReference carriers[RCS_DER_BATCH];
     fmi2Real values[RCS_DER_BATCH];
     size_t n = 0;
+    t_error_logged = 0;
     for (size_t i = 0; i < nvr; i++) {
         size_t k = 0;
         while (k < g_n_der && !(g_der[k].input == vr[i] && g_der[k].order == order[i])) k++;
@@ -959,7 +1082,7 @@ RCS_EXPORT fmi2Status fmi2SetRealInputDerivatives(fmi2Component c, const fmi2Val
         carriers[n] = g_der[k].carrier;
         values[n] = value[i];
         if (++n == RCS_DER_BATCH || i + 1 == nvr) {
-            fmi2Status status = g_api.fmi2SetReal(c, carriers, n, values);
+            fmi2Status status = answer(g_api.fmi2SetReal(c, carriers, n, values));
             if (status > fmi2Warning) return status;
             n = 0;
         }
@@ -1015,43 +1138,6 @@ static void read_variable_table(const char *resources)
     g_vtype = type;
 }
 
-/* The host's logger and instance name of each live instance, for the messages above. */
-#define RCS_MAX_INSTANCES 1024
-static struct {
-    fmi2Component c;
-    const fmi2CallbackFunctions *functions;
-    char *name;
-} g_inst[RCS_MAX_INSTANCES];
-
-static void remember_instance(fmi2Component c, const fmi2CallbackFunctions *functions,
-                              fmi2String name)
-{
-    pthread_mutex_lock(&g_lock);
-    for (size_t i = 0; i < RCS_MAX_INSTANCES; i++) {
-        if (g_inst[i].c == NULL) {
-            g_inst[i].c = c;
-            g_inst[i].functions = functions;
-            g_inst[i].name = strdup(name ? name : "");
-            break;
-        }
-    }
-    pthread_mutex_unlock(&g_lock);
-}
-
-static void forget_instance(fmi2Component c)
-{
-    pthread_mutex_lock(&g_lock);
-    for (size_t i = 0; i < RCS_MAX_INSTANCES; i++) {
-        if (g_inst[i].c == c) {
-            free(g_inst[i].name);
-            g_inst[i].c = NULL;
-            g_inst[i].name = NULL;
-            break;
-        }
-    }
-    pthread_mutex_unlock(&g_lock);
-}
-
 static const char *type_name(char letter)
 {
     switch (letter) {
@@ -1082,18 +1168,7 @@ static fmi2Status check_types(fmi2Component c, const char *function, const fmi2V
                      function, g_vname[vr[i]] ? g_vname[vr[i]] : "?", (unsigned long)vr[i],
                      type_name(have), type_name(want), strncmp(function, "fmi2Set", 7) ? "Get" : "Set",
                      type_name(have));
-        const fmi2CallbackFunctions *functions = NULL;
-        char name[256] = "";
-        pthread_mutex_lock(&g_lock);
-        for (size_t k = 0; k < RCS_MAX_INSTANCES; k++) {
-            if (g_inst[k].c == c) {
-                functions = g_inst[k].functions;
-                snprintf(name, sizeof name, "%s", g_inst[k].name ? g_inst[k].name : "");
-                break;
-            }
-        }
-        pthread_mutex_unlock(&g_lock); /* the host's logger runs outside the lock */
-        log_message(functions, name, fmi2Error, "logStatusError", text);
+        log_refusal(c, text);
         return fmi2Error;
     }
     return fmi2OK;
@@ -1130,9 +1205,15 @@ RCS_EXPORT fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuTy
     int ready = g_ready;
     pthread_mutex_unlock(&g_lock);
     if (!ready) return NULL;
+    rcs_env *env = routed_callbacks(functions, loggingOn);
+    int routed = env != NULL && env->host != NULL;
     fmi2Component c = g_api.fmi2Instantiate(instanceName, fmuType, fmuGUID, fmuResourceLocation,
-                                            functions, visible, loggingOn);
-    if (c != NULL) remember_instance(c, functions, instanceName);
+                                            routed ? &env->callbacks : functions, visible,
+                                            routed ? 1 : loggingOn);
+    if (c != NULL)
+        remember_instance(c, functions, instanceName, env);
+    else
+        free(env);
     if (c == NULL && !loggingOn) {
         /* pythonfmu reports its Python exceptions only when logging is on. */
         char text[sizeof g_python_desc + 512];
@@ -1149,25 +1230,70 @@ RCS_EXPORT fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuTy
 
 RCS_EXPORT void fmi2FreeInstance(fmi2Component c)
 {
-    if (c != NULL) forget_instance(c);
+    rcs_env *env = c != NULL ? forget_instance(c) : NULL;
     if (c != NULL && g_api.fmi2FreeInstance != NULL) g_api.fmi2FreeInstance(c);
+    free(env);
 }
 
 #define RCS_FORWARD(name, params, args)                                                          \
     RCS_EXPORT fmi2Status name params                                                            \
     {                                                                                            \
         if (g_api.name == NULL) return fmi2Error;                                                \
-        return g_api.name args;                                                                  \
+        t_error_logged = 0;                                                                      \
+        return answer(g_api.name args);                                                          \
     }
 RCS_STATUS_FUNCTIONS(RCS_FORWARD)
 #undef RCS_FORWARD
+
+/* The host's logging choice is kept by the shim (see rcs_logger); pythonfmu keeps logging. */
+RCS_EXPORT fmi2Status fmi2SetDebugLogging(fmi2Component c, fmi2Boolean loggingOn,
+                                          size_t nCategories, const fmi2String categories[])
+{
+    int found = 0;
+    pthread_mutex_lock(&g_lock);
+    for (size_t k = 0; k < RCS_MAX_INSTANCES; k++) {
+        if (g_inst[k].c == c && g_inst[k].env != NULL) {
+            g_inst[k].env->logging_on = loggingOn;
+            found = 1;
+            break;
+        }
+    }
+    pthread_mutex_unlock(&g_lock);
+    if (found || g_api.fmi2SetDebugLogging == NULL) return found ? fmi2OK : fmi2Error;
+    return g_api.fmi2SetDebugLogging(c, loggingOn, nCategories, categories);
+}
+
+/* The slave reads bytes that are not a state of this FMU (garbage, truncated, another
+ * FMU's) as a mark that serialises to nothing: refused here, and the mark freed. */
+RCS_EXPORT fmi2Status fmi2DeSerializeFMUstate(fmi2Component c, const fmi2Byte serializedState[],
+                                              size_t size, fmi2FMUstate *state)
+{
+    if (g_api.fmi2DeSerializeFMUstate == NULL || g_api.fmi2SerializedFMUstateSize == NULL ||
+        g_api.fmi2FreeFMUstate == NULL)
+        return fmi2Error;
+    t_error_logged = 0;
+    fmi2Status status = answer(g_api.fmi2DeSerializeFMUstate(c, serializedState, size, state));
+    if (status > fmi2Warning) return status;
+    size_t back = 0;
+    if (g_api.fmi2SerializedFMUstateSize(c, *state, &back) == fmi2OK && back > 0) return status;
+    g_api.fmi2FreeFMUstate(c, state);
+    *state = NULL;
+    char text[256];
+    snprintf(text, sizeof text,
+             "fmi2DeSerializeFMUstate: these %lu bytes are not a serialised state of this FMU; "
+             "call refused",
+             (unsigned long)size);
+    log_refusal(c, text);
+    return fmi2Error;
+}
 
 #define RCS_FORWARD_CHECKED(name, params, args, type)                                            \
     RCS_EXPORT fmi2Status name params                                                            \
     {                                                                                            \
         if (g_api.name == NULL) return fmi2Error;                                                \
         if (check_types(c, #name, vr, nvr, type) != fmi2OK) return fmi2Error;                    \
-        return g_api.name args;                                                                  \
+        t_error_logged = 0;                                                                      \
+        return answer(g_api.name args);                                                          \
     }
 RCS_VALUE_FUNCTIONS(RCS_FORWARD_CHECKED)
 #undef RCS_FORWARD_CHECKED
