@@ -31,7 +31,7 @@ from rubcosim import __version__, components
 from rubcosim.components.registry import REGISTRY
 from rubcosim.components.unit import Unit
 
-from .native import LOADER_SOURCE, install_loader
+from .native import LOADER_FILES, install_loader
 
 COMPONENTS_DIR = Path(components.__file__).resolve().parent
 # the slave and its variable access, bundled into every FMU next to the components
@@ -52,14 +52,19 @@ import os
 import shutil
 import sys
 import tempfile
+import time
 from pathlib import Path
+
+
+UNUSED_DAYS = 30
 
 
 def _fixed_home(bundle):
     """With RUBCOSIM_NUMBA=1 the bundle's kernels compile with numba, which keys its
     cache by the source files' paths; a host unpacks the FMU into a new folder at each
     load.  The bundle is then imported from a copy at a fixed place, named by the hash
-    of its sources, so that a second load compiles nothing."""
+    of its sources, so that a second load compiles nothing.  Each load marks its copy as
+    used; copies no load has used for UNUSED_DAYS days (other builds) are removed."""
     if os.environ.get("RUBCOSIM_NUMBA") != "1":
         return
     cache = os.environ.get("XDG_CACHE_HOME") or os.path.join(Path.home(), ".cache")
@@ -78,8 +83,26 @@ def _fixed_home(bundle):
         finally:
             if tmp is not None:
                 shutil.rmtree(tmp, ignore_errors=True)
-    if (home / bundle).is_dir() and str(home) not in sys.path:
-        sys.path.insert(0, str(home))
+    if (home / bundle).is_dir():
+        _mark_used_and_clean(root, home)
+        if str(home) not in sys.path:
+            sys.path.insert(0, str(home))
+
+
+def _mark_used_and_clean(root, home):
+    try:
+        os.utime(home)
+        entries = list(root.iterdir())
+    except OSError:
+        return
+    old = time.time() - UNUSED_DAYS * 86400.0
+    for entry in entries:
+        try:
+            unused = entry != home and entry.is_dir() and entry.stat().st_mtime < old
+        except OSError:
+            continue
+        if unused:
+            shutil.rmtree(entry, ignore_errors=True)
 
 
 _fixed_home("{bundle}")
@@ -127,10 +150,10 @@ def bundled_sources() -> list[Path]:
 
 
 def source_digest() -> str:
-    """Hash of the version, every bundled source and the loader shim's C source (compiled
+    """Hash of the version, every bundled source and the loader shim's C sources (compiled
     into every FMU): names the bundle and the FMU cache, and seeds GUIDs."""
     digest = hashlib.sha256(__version__.encode())
-    for path in (*bundled_sources(), LOADER_SOURCE):
+    for path in (*bundled_sources(), *LOADER_FILES):
         digest.update(path.name.encode())
         digest.update(path.read_bytes())
     return digest.hexdigest()[:12]

@@ -35,6 +35,7 @@ __all__ = [
     "VARIABLES_FILE",
     "DERIVATIVE_CARRIER",
     "EXPORT_SUFFIX",
+    "LOADER_FILES",
     "LOADER_SOURCE",
     "RUNTIME_FILE",
     "compile_loader",
@@ -45,8 +46,10 @@ __all__ = [
     "python_runtime",
 ]
 
-#: C source of the loader shim, shipped next to this module.
+#: C source of the loader shim (its FMI 2.0 entry points), shipped next to this module.
 LOADER_SOURCE = Path(__file__).parent / "loader" / "rubcosim_fmu_loader.c"
+#: Every file the shim is compiled from: its C sources and their shared header.
+LOADER_FILES = (*sorted(LOADER_SOURCE.parent.glob("*.c")), LOADER_SOURCE.with_name("rcs_shim.h"))
 #: Archive name of the runtime record read by the shim.
 RUNTIME_FILE = "resources/rubcosim_python.txt"
 #: Archive name of the input-derivative table read by the shim.
@@ -135,8 +138,9 @@ def compile_loader(dest: Path, model_identifier: str) -> Path:
             "gcc was not found on PATH; it is required to compile the rubcosim FMU loader shim "
             f"({LOADER_SOURCE}). Install gcc (e.g. 'apt-get install gcc') and retry."
         )
-    if not LOADER_SOURCE.is_file():
-        raise RuntimeError(f"FMU loader source is missing: {LOADER_SOURCE}")
+    missing = [str(path) for path in (LOADER_SOURCE, *LOADER_FILES) if not path.is_file()]
+    if missing:
+        raise RuntimeError(f"FMU loader source is missing: {', '.join(missing)}")
     dest = Path(dest)
     dest.mkdir(parents=True, exist_ok=True)
     out = dest / f"{model_identifier}.so"
@@ -149,7 +153,7 @@ def compile_loader(dest: Path, model_identifier: str) -> Path:
         "-Wall",
         "-o",
         str(out),
-        str(LOADER_SOURCE),
+        *(str(path) for path in LOADER_FILES if path.suffix == ".c"),
         "-ldl",
         "-lpthread",
     ]

@@ -69,8 +69,8 @@ class FmuUnit:
             raise FmuError(f"{self.path} has no co-simulation interface")
         self.name = name or self.md.modelName
         self.variables = {v.name: v for v in self.md.modelVariables}
-        # what the master reads after every step: the numeric outputs (a String output
-        # is neither recorded nor connected, see orchestrator.foreign)
+        # what the master reads after every step: the numeric outputs (a String output is
+        # read only where recorded, and never connected: see orchestrator.foreign)
         self.inputs, self.outputs = signal_names(self.md)
         self.text_outputs = text_outputs(self.md)  # String outputs: read where recorded
         self.messages: list[str] = []

@@ -11,9 +11,7 @@ The Python API (:mod:`rubcosim.api`) is re-exported here and loaded on first use
 
 from __future__ import annotations
 
-import hashlib
 import os
-from importlib.util import find_spec
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -84,21 +82,12 @@ def __dir__() -> list[str]:
 
 
 def _numba_cache_dir() -> Path:
-    """A numba cache directory keyed by the source of every compiled module.
+    """numba's cache directory, named by the sources compiled code can reach
+    (:mod:`.compile_key`): an edit elsewhere keeps the compiled code, an edit there
+    starts a new directory (numba does not notice a change in another module)."""
+    from .compile_key import numba_cache_dir
 
-    numba invalidates a cached function when its own file changes, not when a
-    function it calls in another module does; keying the directory on all the
-    sources makes a stale mixture of old and new kernels impossible.
-    """
-    digest = hashlib.sha256(__version__.encode())
-    for package in ("rubcosim.components", "rubcosim.reference", "rubcosim.orchestrator"):
-        spec = find_spec(package)
-        for folder in spec.submodule_search_locations if spec else ():
-            for path in sorted(Path(folder).glob("*.py")):
-                digest.update(path.name.encode())
-                digest.update(path.read_bytes())
-    base = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache")
-    return base / "rubcosim" / "numba" / digest.hexdigest()[:16]
+    return numba_cache_dir(__version__)
 
 
 if not os.environ.get("NUMBA_CACHE_DIR"):

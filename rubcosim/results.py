@@ -163,7 +163,10 @@ class CheckResult:
         """How much of the difference a correct integration at the co-simulation's tolerance
         shows too, and whether chaos is why (:mod:`rubcosim.chaos_check`): ``verdict``
         (``regular``, or ``sensitive``/``chaotic`` then ``within the peer``/``beyond the
-        peer``), the peer's difference, the largest Lyapunov exponent (1/s), the horizon (s)."""
+        peer``), the peer's difference, the largest Lyapunov exponent (1/s), the horizon (s),
+        and past the horizon (``beyond_horizon``) the impact rates (1/s) and the distances of
+        the outputs' distributions (Kolmogorov-Smirnov) of the peer and of the
+        co-simulation, and whether they ``agree``."""
         return self.report["chaos"]
 
     def write(self, out_dir: str | Path, plots: bool = True) -> Path:

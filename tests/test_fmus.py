@@ -8,6 +8,7 @@ import os
 import re
 import subprocess
 import sys
+import time
 import xml.etree.ElementTree as ET
 import zipfile
 
@@ -281,6 +282,13 @@ def test_fmu_simulates_with_fmpy_in_a_fresh_process(built_fmus, ident, tmp_path)
 def test_fmu_runs_without_numba_and_with_it(built_fmus, tmp_path):
     path = str(built_fmus["RubcosimImpactOscillator"])
     start = json.dumps(stimulus_params("RubcosimImpactOscillator"))
+    # bundle copies of other builds: one unused for 40 days (removed), one used today
+    bundles = tmp_path / "cache" / "rubcosim" / "fmu_bundles"
+    stale, recent = bundles / "rubcosim_bundle_stale", bundles / "rubcosim_bundle_recent"
+    for folder in (stale / "pkg", recent / "pkg"):
+        folder.mkdir(parents=True)
+    forty_days_ago = time.time() - 40 * 86400.0
+    os.utime(stale, (forty_days_ago, forty_days_ago))
     results = []
     for env, extra in (
         ({}, []),
@@ -302,6 +310,8 @@ def test_fmu_runs_without_numba_and_with_it(built_fmus, tmp_path):
     # the bundle is imported from a copy named by its sources' hash (fmus/build.py), so
     # numba finds what the first load compiled although fmpy unpacks to a new folder
     assert results[3]["last"] == results[1]["last"] and results[3]["misses"] == 0
+    assert not stale.exists() and recent.is_dir()
+    assert any(p.name.startswith("rubcosim_rubcosimimpactoscillator_") for p in bundles.iterdir())
 
 
 def test_rotor_fmu_with_no_force_follows_the_free_whirl(built_fmus):

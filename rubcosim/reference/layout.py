@@ -19,8 +19,8 @@ declarations (:mod:`rubcosim.components.registry`), in registry order:
 Every slot is a module-level integer (numba compiles them as constants into
 the kernels of :mod:`.system`, where this module is re-exported); adding a
 parameter to a declaration adds its slot here, with no edit.  Compiled kernels
-that depend on these numbers are cached in a directory keyed on the sources of
-``rubcosim.components`` (:func:`rubcosim._numba_cache_dir`), so a changed
+that depend on these numbers are cached in a directory keyed on the sources compiled
+code can reach, the declarations among them (:mod:`rubcosim.compile_key`), so a changed
 declaration never meets a stale kernel.  Event kinds name what an event did
 (:data:`KIND_NAMES`).
 """
