@@ -10,13 +10,19 @@ the FMU master, the CLI, the scenario files' loader, the plots) keeps the compil
 edit anywhere compiled code can see starts a new, empty directory, so a stale mixture of old
 and new kernels cannot happen.
 
-Finding that set parses the sources (about 0.4 s).  The answer is kept under the hash of
+Finding that set parses the sources (about 0.5 s).  The answer is kept under the hash of
 all the sources (``keys/`` in the cache), so a process finds it with one read of the sources
 and one small file, as long as no source changed.
+
+Every process marks the directory it uses (its modification time); when a new state of the
+sources is first seen, the directories (and keys) no process has used for
+:data:`UNUSED_DAYS` days are removed: each holds about 100 MB of compiled code for sources
+that are gone (an older release, an old checkout).
 """
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import os
 from importlib.util import find_spec
@@ -24,6 +30,7 @@ from pathlib import Path
 
 # the packages whose modules compiled code may import, besides rubcosim itself
 SUBPACKAGES = ("components", "reference", "orchestrator", "analysis")
+UNUSED_DAYS = 30
 
 
 def sources() -> dict[str, Path]:
@@ -120,6 +127,7 @@ def key(version: str, files: dict[str, Path] | None = None) -> str:
     except OSError:
         pass
     found = _digest(version, texts, reached(texts))
+    remove_unused(keep=found)
     try:
         note.parent.mkdir(parents=True, exist_ok=True)
         scratch = note.with_name(f".{everything}.{os.getpid()}")
@@ -145,5 +153,41 @@ def cache_base() -> Path:
 
 
 def numba_cache_dir(version: str) -> Path:
-    """numba's cache directory for these sources: :func:`cache_base` / :func:`key`."""
-    return cache_base() / key(version)
+    """numba's cache directory for these sources (:func:`cache_base` / :func:`key`),
+    marked as used now."""
+    folder = cache_base() / key(version)
+    with contextlib.suppress(OSError):  # not made yet: numba makes it at its first write
+        os.utime(folder)
+    return folder
+
+
+def remove_unused(keep: str, days: float = UNUSED_DAYS) -> list[Path]:
+    """Remove the cache directories other than ``keep``, and the keys, that no process has
+    used for ``days`` days; returns what was removed."""
+    import re
+    import shutil
+    import time
+
+    base = cache_base()
+    old = time.time() - days * 86400.0
+    removed = []
+    candidates = [p for p in _entries(base) if re.fullmatch(r"[0-9a-f]{16}", p.name)]
+    for path in [*candidates, *_entries(base / "keys")]:
+        try:
+            unused = path.name != keep and path.stat().st_mtime < old
+        except OSError:
+            continue
+        if unused:
+            if path.is_dir():
+                shutil.rmtree(path, ignore_errors=True)
+            else:
+                path.unlink(missing_ok=True)
+            removed.append(path)
+    return removed
+
+
+def _entries(folder: Path) -> list[Path]:
+    try:
+        return list(folder.iterdir())
+    except OSError:
+        return []

@@ -82,3 +82,33 @@ def test_the_key_changes_with_a_kernel_and_not_with_the_python_master(tmp_path, 
     stator.write_bytes(stator.read_bytes() + b"\n# an edit of the stator's kernels\n")
     assert key(__version__, files) != first
     assert key("another version", files) != key(__version__, files)
+
+
+def test_cache_directories_unused_for_thirty_days_are_removed(tmp_path, monkeypatch):
+    import os
+    import time
+
+    from rubcosim.compile_key import numba_cache_dir, remove_unused
+
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))
+    base = cache_base()
+    old, recent, current = base / "0123456789abcdef", base / "fedcba9876543210", base / "keys"
+    for folder in (old / "sub", recent / "sub", current):
+        folder.mkdir(parents=True)
+    (current / ("a" * 16)).write_text("0123456789abcdef")
+    (base / "not_a_cache").mkdir()
+    forty_days_ago = time.time() - 40 * 86400.0
+    for path in (old, current / ("a" * 16), base / "not_a_cache"):
+        os.utime(path, (forty_days_ago, forty_days_ago))
+
+    removed = remove_unused(keep="fedcba9876543210")
+    assert sorted(p.name for p in removed) == ["0123456789abcdef", "a" * 16]
+    assert not old.exists() and recent.is_dir() and (base / "not_a_cache").is_dir()
+
+    # the directory a process uses is marked as used, so it is kept however old it was
+    used = numba_cache_dir(__version__)
+    used.mkdir(parents=True, exist_ok=True)
+    os.utime(used, (forty_days_ago, forty_days_ago))
+    assert numba_cache_dir(__version__) == used
+    assert used.stat().st_mtime > time.time() - 60
+    assert used not in remove_unused(keep="none of them")
