@@ -126,6 +126,9 @@ PARAMETER_SETS = {
     ),
 }
 FUZZED = sorted(PARAMETER_SETS)
+# The casing stator's reference integrates with scipy at rtol 1e-10 in plain Python: a drawn
+# sequence with contact took minutes.  Its answers to the REQUIRED cases are still checked.
+SEQUENCES = [ident for ident in FUZZED if ident != "RubcosimCasingStator"]
 
 # The size of each input's values (a real input is drawn from [-size, size]; an integer
 # input from the range given): the sizes of the stimuli of tests/test_units.py, so that
@@ -712,9 +715,14 @@ class Session:
 
 _ANY = {"Real": 1.0, "Integer": 1, "Boolean": True, "String": "x"}
 
+# The suite's run draws the same sequences every time (derandomize): a sequence can take
+# seconds (the casing stator's reference integrates with scipy at rtol 1e-10 in plain
+# Python), and a random draw made one CI run minutes longer.  RUBCOSIM_FUZZ_EXAMPLES (make
+# fuzz) draws new ones at every run.
 FUZZ_SETTINGS = settings(
     max_examples=EXAMPLES,
     deadline=None,
+    derandomize="RUBCOSIM_FUZZ_EXAMPLES" not in os.environ,
     suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large],
 )
 
@@ -724,7 +732,7 @@ NAN_INPUTS = pytest.mark.filterwarnings("ignore:invalid value encountered:Runtim
 
 
 @NAN_INPUTS
-@pytest.mark.parametrize("ident", FUZZED)
+@pytest.mark.parametrize("ident", SEQUENCES)
 @FUZZ_SETTINGS
 @given(data=st.data())
 def test_random_valid_call_sequences_match_the_unit_and_invalid_calls_change_nothing(
