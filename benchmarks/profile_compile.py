@@ -7,8 +7,8 @@ process with an empty numba cache (``NUMBA_CACHE_DIR`` a new temporary directory
 sums the wall time of every compiler pass numba runs (its ``numba:run_pass`` events),
 less the passes nested in it (a pass that compiles a callee contains that callee's
 passes), by pass and by function.  ``--unpatched`` runs the same compile without
-rubcosim's replacements of numba's inlining and SSA passes
-(``components/numba_compile_time.py``), to measure what they save.
+rubcosim's replacement of numba's inlining pass
+(``components/numba_compile_time.py``), to measure what it saves.
 
     .venv/bin/python benchmarks/profile_compile.py [--scenario jeffcott_rigid_stator]
         [--engine fast] [--engine accurate] [--top 20] [--unpatched]
@@ -31,7 +31,7 @@ args = json.loads(sys.argv[1])
 if args["unpatched"]:
     import rubcosim.components.numba_compile_time as nct
 
-    nct.install = lambda: {"inlining": False, "ssa": False}
+    nct.install = lambda: {"inlining": False}
 stack, by_pass, by_function = [], collections.Counter(), collections.Counter()
 
 
@@ -93,7 +93,7 @@ def main(argv: list[str] | None = None) -> int:
     walls = ", ".join(f"{e} {s:.1f} s" for e, s in got["walls"].items())
     total = sum(s for _, s in got["passes"])
     patched = "without" if args.unpatched else "with"
-    print(f"{args.scenario}, empty cache, {patched} rubcosim's numba pass replacements")
+    print(f"{args.scenario}, empty cache, {patched} rubcosim's numba inlining patch")
     print(f"wall: {walls}; numba's passes {total:.1f} s in all\n")
     print("| pass | self time |\n|---|---:|")
     for name, sec in got["passes"][:12]:

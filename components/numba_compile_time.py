@@ -1,15 +1,18 @@
 """Cheaper cold compiles of rubcosim's kernels, with the same compiled code.
 
-numba's front end spends most of a cold compile of our engines in passes whose
-cost grows faster than the code: inlining (:mod:`.numba_inlining`) and SSA
-reconstruction (:mod:`.numba_ssa`).  Each module patches one of them, produces the
-same IR, and patches nothing when numba does not have the structure it was
-written against.
+numba's front end spends much of a cold compile of our engines in its inlining, whose
+cost grows faster than the code inlined (:mod:`.numba_inlining`, which patches it,
+produces the same IR, and patches nothing when numba does not have the structure it was
+written against).  numba's SSA reconstruction was patched too, until the engines' model
+kernels were compiled apart from their machinery: without that patch a cold compile of
+the flagship's engines took the same time (``benchmarks/profile_compile.py``, two
+alternated pairs: 52.7 and 54.9 s against 52.3 and 55.3 s with it), the co-simulation's
+units and master 169.4 s against 162.5 s (one pair, within this machine's drift), and
+it went.
 
-:func:`install_before_first_compile` installs them when numba starts compiling
-for the first time in a process: numba's inliner module takes 25 ms to import,
-and a process that only loads compiled code from the cache (a warm
-``rubcosim run``) never needs either.
+:func:`install_before_first_compile` installs the patch when numba starts compiling for
+the first time in a process: numba's inliner module takes 25 ms to import, and a process
+that only loads compiled code from the cache (a warm ``rubcosim run``) never needs it.
 """
 
 from __future__ import annotations
@@ -20,10 +23,10 @@ _DEFERRED: list[Any] = []  # the listener, once registered
 
 
 def install() -> dict[str, bool]:
-    """Install both patches now; which of them are in place."""
-    from . import numba_inlining, numba_ssa
+    """Install the patch now; whether it is in place."""
+    from . import numba_inlining
 
-    return {"inlining": numba_inlining.install(), "ssa": numba_ssa.install()}
+    return {"inlining": numba_inlining.install()}
 
 
 def install_before_first_compile() -> None:

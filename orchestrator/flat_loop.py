@@ -112,14 +112,16 @@ def _record_due(G, S):
     S.ms[MS_K_OUT] = k
 
 
-@njit
+# inlined: a call of its own would carry another copy of _copy's code (numba links a
+# callee's code into each caller and optimises it again there)
+@njit(inline="always")
 def _checkpoint(G, S):
     """Save what a replay restores: the units and the master's state (``_master_state``)."""
     S.cnt[N_SNAPSHOTS] += 1
     _copy(G, S, np.bool_(True))
 
 
-@njit
+@njit(inline="always")
 def _replay(G, S):
     _copy(G, S, np.bool_(False))
 

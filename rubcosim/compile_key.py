@@ -10,6 +10,12 @@ the FMU master, the CLI, the scenario files' loader, the plots) keeps the compil
 edit anywhere compiled code can see starts a new, empty directory, so a stale mixture of old
 and new kernels cannot happen.
 
+The set is found from the import statements, so it sees static imports only.  The
+computed imports in the code today do not escape it: the generated modules are keyed by
+their own text (:mod:`rubcosim.reference.specialize`), and the engines
+``simulate`` imports by name import numba themselves.  A module a kernel module imported
+by a computed name, and that itself uses no numba, would escape the key.
+
 Finding that set parses the sources (about 0.5 s).  The answer is kept under the hash of
 all the sources (``keys/`` in the cache), so a process finds it with one read of the sources
 and one small file, as long as no source changed.

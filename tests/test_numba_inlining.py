@@ -225,7 +225,7 @@ def _stored_ir(store):
 
 
 def test_numba_is_the_release_pyproject_pins():
-    """The patches of numba's passes (here and components/numba_ssa.py) and the private
+    """The patch of numba's inlining pass (tested here) and the private
     names rubcosim/reference/stack_arrays.py uses were written against one numba
     release; pyproject pins it.  Another numba in this environment (installed by hand)
     fails here first, by name, rather than as wrong IR somewhere in a kernel."""

@@ -238,15 +238,19 @@ RCS_EXPORT fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuTy
         remember_instance(c, functions, instanceName, env);
     else
         free(env);
-    if (c == NULL && !loggingOn) {
-        /* pythonfmu reports its Python exceptions only when logging is on. */
+    if (c == NULL) {
+        /* Routed through the shim's logger, pythonfmu runs with logging on and its
+           errors reach the host whatever loggingOn says; unrouted (no host logger to
+           route to), it reports its Python exceptions only when logging is on. */
         char text[sizeof g_python_desc + 512];
         snprintf(text, sizeof text,
-                 "rubcosim FMU loader: pythonfmu's fmi2Instantiate failed (Python: %s). Its error "
-                 "details are only logged with loggingOn=fmi2True. If a module is missing, set "
-                 "RUBCOSIM_PYTHON to the python of the environment that has the FMU's "
-                 "dependencies.",
-                 g_python_desc);
+                 "rubcosim FMU loader: pythonfmu's fmi2Instantiate failed (Python: %s).%s If a "
+                 "module is missing, set RUBCOSIM_PYTHON to the python of the environment that "
+                 "has the FMU's dependencies.",
+                 g_python_desc,
+                 routed || loggingOn
+                     ? ""
+                     : " Its error details are only logged with loggingOn=fmi2True.");
         log_message(functions, instanceName, fmi2Error, "logStatusError", text);
     }
     return c;

@@ -103,7 +103,7 @@ def strobe_run(
                    modes, (imp_t, imp_y, imp_count))  # fmt: skip
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, inline="always")
 def _strobe(
     y, mode, t0, period, n_skip, n_keep, p, model, tol, bufs, points, impacts, modes, section
 ):
@@ -173,9 +173,7 @@ def map_many(
         mode = modes0[j]
         st = STATUS_OK
         for k in range(n_periods):
-            # np.int64, not literals: a literal argument is a compiled version of its own
-            one_period = (np.int64(0), np.int64(1))
-            st, done, mode = _strobe(y, mode, t0 + k * period, period, *one_period, p, model, tol,
+            st, done, mode = _strobe(y, mode, t0 + k * period, period, 0, 1, p, model, tol,
                                      bufs, pts, imp, md, no_section)  # fmt: skip
             if st != STATUS_OK:
                 break

@@ -19,7 +19,7 @@ from rubcosim.reference.tangent import new_tangent
 from .strobe_kernels import _period_events
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, inline="always")
 def _interval(y, mode, t_a, t_b, p, model, tol, out, dde, y_end, tan):
     """One interval [t_a, t_b] (with the tangent ``tan``, or None); y advanced in
     place; returns ``(status, mode, impacts)``."""
