@@ -119,12 +119,15 @@ def default_fmu_dir() -> Path:
     from rubcosim.fmus.build import source_digest
 
     base = os.environ.get(FMU_CACHE_ENV)
-    root = Path(base) if base else Path.home() / ".cache" / "rubcosim" / "fmus"
+    cache = os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache"
+    root = Path(base) if base else Path(cache) / "rubcosim" / "fmus"
     return root / source_digest()
 
 
 def fmu_paths(roles_types: Mapping[str, str], fmu_dir: Path | None) -> dict[str, Path]:
-    """The FMU file of every unit, built into ``fmu_dir`` first when missing."""
+    """The FMU file of every unit, built into ``fmu_dir`` first when missing.  In the
+    default directory (:func:`default_fmu_dir`), each use marks the sources' directory
+    as used, and the directories of other sources unused for ``UNUSED_DAYS`` days go."""
     from rubcosim.fmus.build import build_fmus
 
     directory = Path(fmu_dir) if fmu_dir is not None else default_fmu_dir()
@@ -134,7 +137,44 @@ def fmu_paths(roles_types: Mapping[str, str], fmu_dir: Path | None) -> dict[str,
     )
     if missing:
         build_fmus(directory, only=missing)
+    if fmu_dir is None:
+        remove_unused_builds(directory)
     return {role: directory / f.file_name for role, f in fmus.items()}
+
+
+UNUSED_DAYS = 30
+
+
+def remove_unused_builds(keep: Path, days: float = UNUSED_DAYS) -> list[Path]:
+    """Mark ``keep`` (a directory of :func:`default_fmu_dir`) as used and remove its
+    siblings that are builds of other sources (named by a 12-hex-digit digest) no run has
+    used for ``days`` days: each holds the FMUs of a version that is gone.  Returns what
+    was removed."""
+    import re
+    import shutil
+    import time
+
+    try:
+        os.utime(keep)
+        siblings = list(keep.parent.iterdir())
+    except OSError:
+        return []
+    old = time.time() - days * 86400.0
+    removed = []
+    for path in siblings:
+        try:
+            unused = (
+                path != keep
+                and re.fullmatch(r"[0-9a-f]{12}", path.name) is not None
+                and path.is_dir()
+                and path.stat().st_mtime < old
+            )
+        except OSError:
+            continue
+        if unused:
+            shutil.rmtree(path, ignore_errors=True)
+            removed.append(path)
+    return removed
 
 
 @contextlib.contextmanager

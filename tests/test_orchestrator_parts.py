@@ -4,6 +4,8 @@ connections, settings, evaluation order, input derivatives of units."""
 from __future__ import annotations
 
 import math
+import os
+import time
 
 import pytest
 
@@ -241,3 +243,23 @@ def test_fmu_paths_build_only_what_is_missing(tmp_path, monkeypatch):
     stamp = paths["rotor"].stat().st_mtime_ns
     assert fmu_paths({"rotor": "jeffcott"}, tmp_path / "fmus") == paths
     assert paths["rotor"].stat().st_mtime_ns == stamp  # not rebuilt
+
+
+def test_fmu_builds_of_other_sources_unused_for_30_days_are_removed(tmp_path, monkeypatch):
+    from rubcosim.orchestrator.assembly import FMU_CACHE_ENV, default_fmu_dir, fmu_paths
+
+    monkeypatch.setenv(FMU_CACHE_ENV, str(tmp_path / "cache"))
+    current = default_fmu_dir()
+    forty_days_ago = time.time() - 40 * 86400.0
+    names = ("0123456789ab", "ba9876543210", "mine")
+    stale, recent, other = (tmp_path / "cache" / n for n in names)
+    for folder in (current, stale, recent, other):
+        folder.mkdir(parents=True, exist_ok=True)
+    for folder in (current, stale, other):
+        os.utime(folder, (forty_days_ago, forty_days_ago))
+    paths = fmu_paths({"rotor": "jeffcott"}, None)
+    assert paths["rotor"].parent == current and paths["rotor"].is_file()
+    # this version's builds are marked as used; another version's unused for 40 days go;
+    # one used recently and a folder not named by a digest stay
+    assert current.stat().st_mtime > forty_days_ago + 30 * 86400.0
+    assert not stale.exists() and recent.is_dir() and other.is_dir()
