@@ -84,6 +84,7 @@ class UnitSlave(Fmi2Slave):
         self._cache: dict[str, float] | None = None
         self._start_time = 0.0
         self._stop_time: float | None = None
+        self._refusals = 0  # calls refused so far (_refuse): a set call undoes itself on one
         for p in cls.params_spec:
             self._register_parameter(p)
         for s in cls.inputs:
@@ -95,6 +96,7 @@ class UnitSlave(Fmi2Slave):
     def _refuse(self, reason: str) -> None:
         """Refuse the call in progress: ``reason`` logged at fmi2Error, which the loader
         shim makes the call's answer.  Never an exception (see the module docstring)."""
+        self._refusals += 1
         self.log(reason, Fmi2Status.error)
 
     # --- variables ------------------------------------------------------------
@@ -207,11 +209,20 @@ class UnitSlave(Fmi2Slave):
         except KeyError:
             self._refuse(self._access.why(kind, vrs, True, self._stepping))
             return
+        # Several values: all or none.  One refused after others were applied (a NaN
+        # derivative third) takes them back (the setters touch only what is saved here);
+        # one value is applied whole or refused by its setter.
+        unit, refusals = self._unit, self._refusals
+        saved = None
+        if len(calls) > 1:
+            saved = (dict(self._params), dict(unit.u), dict(unit.du), self._dirty, self._cache)
         try:
             for call, value in zip(calls, values, strict=False):
                 call(value)
         except Exception as exc:  # noqa: BLE001 - the unit refused the value
             self._refuse(reason(exc))
+        if saved is not None and self._refusals != refusals:
+            self._params, unit.u, unit.du, self._dirty, self._cache = saved
 
     def get_real(self, vrs: list[int]) -> list[float]:
         return self._get(Real, vrs)

@@ -882,6 +882,18 @@ def case_nan_derivative_carrier(u):
     return _nan_derivative(u, "carrier")
 
 
+def case_several_values_with_one_refused_change_nothing(u):
+    f = u.new()
+    name = u.spec["real_input"]
+    refs = [u.vr[name], u.vr[name + "_d1"]]
+    before = f.getReal(refs)
+    status, _ = answer(f.setReal, refs, [before[0] + 1.0, math.nan])
+    after = f.getReal(refs)
+    text = (f"fmi2SetReal({name} = {before[0] + 1.0}, {name}_d1 = nan): {NAMES[status]}; "
+            f"({name}, {name}_d1) {before} before, {after} after")
+    return refused_with_error(status) and after == before, text
+
+
 def case_deserialize_bytes_that_are_no_state(u):
     blob = bytes(u.new().serializeFMUstate(u.new().getFMUstate()))
     got = []
@@ -1098,6 +1110,9 @@ REQUIRED = {
     "refused; was fmi2Fatal (a ValueError inside the carrier's setter)",
     "nan_derivative_carrier": "fmi2SetReal of NaN on a tunable <input>_d1 carrier: refused; "
     "was fmi2Fatal",
+    "several_values_with_one_refused_change_nothing": "fmi2SetReal of a new input value and "
+    "a NaN derivative in one call: fmi2Error, and the input keeps its value (a refused call "
+    "changes nothing); the input was set",
     "deserialize_bytes_that_are_no_state": "fmi2DeSerializeFMUstate of bytes that are not a "
     "serialised state (empty, garbage, truncated): fmi2Error; was fmi2Fatal",
     "set_a_state_that_is_no_state": "fmi2DeSerializeFMUstate(b'{}'): fmi2Error; was fmi2OK, "
