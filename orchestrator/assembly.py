@@ -142,39 +142,18 @@ def fmu_paths(roles_types: Mapping[str, str], fmu_dir: Path | None) -> dict[str,
     return {role: directory / f.file_name for role, f in fmus.items()}
 
 
-UNUSED_DAYS = 30
-
-
-def remove_unused_builds(keep: Path, days: float = UNUSED_DAYS) -> list[Path]:
+def remove_unused_builds(keep: Path) -> list[Path]:
     """Mark ``keep`` (a directory of :func:`default_fmu_dir`) as used and remove its
     siblings that are builds of other sources (named by a 12-hex-digit digest) no run has
-    used for ``days`` days: each holds the FMUs of a version that is gone.  Returns what
-    was removed."""
-    import re
-    import shutil
-    import time
+    used for ``UNUSED_DAYS`` days, as numba's cache is cleaned
+    (:func:`rubcosim.compile_key.remove_unused_entries`).  Returns what was removed."""
+    from rubcosim.compile_key import UNUSED_DAYS, remove_unused_entries
 
     try:
         os.utime(keep)
-        siblings = list(keep.parent.iterdir())
     except OSError:
         return []
-    old = time.time() - days * 86400.0
-    removed = []
-    for path in siblings:
-        try:
-            unused = (
-                path != keep
-                and re.fullmatch(r"[0-9a-f]{12}", path.name) is not None
-                and path.is_dir()
-                and path.stat().st_mtime < old
-            )
-        except OSError:
-            continue
-        if unused:
-            shutil.rmtree(path, ignore_errors=True)
-            removed.append(path)
-    return removed
+    return remove_unused_entries(keep.parent, r"[0-9a-f]{12}", keep.name, UNUSED_DAYS)
 
 
 @contextlib.contextmanager

@@ -170,17 +170,31 @@ def numba_cache_dir(version: str) -> Path:
 def remove_unused(keep: str, days: float = UNUSED_DAYS) -> list[Path]:
     """Remove the cache directories other than ``keep``, and the keys, that no process has
     used for ``days`` days; returns what was removed."""
+    base = cache_base()
+    return [
+        *remove_unused_entries(base, r"[0-9a-f]{16}", keep, days),
+        *remove_unused_entries(base / "keys", r".+", keep, days),
+    ]
+
+
+def remove_unused_entries(folder: Path, names: str, keep: str, days: float) -> list[Path]:
+    """Remove the entries of ``folder`` whose name matches the regular expression ``names``,
+    other than ``keep``, not modified for ``days`` days (a user marks an entry by touching
+    it): directories with what they hold.  Used for every cache rubcosim keeps per version
+    of its sources (numba's, the fmu backend's FMU builds); returns what was removed."""
     import re
     import shutil
     import time
 
-    base = cache_base()
     old = time.time() - days * 86400.0
     removed = []
-    candidates = [p for p in _entries(base) if re.fullmatch(r"[0-9a-f]{16}", p.name)]
-    for path in [*candidates, *_entries(base / "keys")]:
+    for path in _entries(folder):
         try:
-            unused = path.name != keep and path.stat().st_mtime < old
+            unused = (
+                path.name != keep
+                and re.fullmatch(names, path.name) is not None
+                and path.stat().st_mtime < old
+            )
         except OSError:
             continue
         if unused:
