@@ -6,6 +6,7 @@ integrator, the FMU wrappers and the orchestrator call these kernels; nothing
 else writes an equation of motion.
 """
 
+from . import registry  # noqa: F401  (built on import: .registered hands its types down)
 from .parameters import Param, ParameterError
 
 __all__ = ["Param", "ParameterError"]

@@ -20,6 +20,7 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Any
 
+from .contact_law import ContactLaw
 from .hybrid import HybridKernels
 from .parameters import Param
 from .unit import Signal, Unit
@@ -132,7 +133,9 @@ class UnitType:
     rad/s: the forcing period is 2 pi over the first, the velocity scale the length
     scale times the second (see :mod:`.graph`).  ``hybrid``: the kernels of a unit
     type that is a whole nonsmooth model (:mod:`.hybrid`); the reference compiles
-    them, the unit class steps them.
+    them, the unit class steps them.  ``contact``: a stator type's contact law
+    (:mod:`.contact_law`), which fixes its event protocol in every engine and, for a
+    penalty contact, its normal force.
     """
 
     unit_class: type[Unit]
@@ -148,6 +151,7 @@ class UnitType:
     length_scale: Callable[[Mapping[str, Any]], float] | None = None
     clock: Callable[[Mapping[str, Any]], tuple[float, float]] | None = None
     hybrid: HybridKernels | None = None
+    contact: ContactLaw | None = None
 
     @property
     def role(self) -> str:
@@ -227,6 +231,11 @@ class UnitType:
                 fail(f"the unit's outputs must start with the hybrid kernels' {expected}")
             if len(self.states) != len(self.hybrid.initial(self._example_params())[0]):
                 fail("the hybrid kernels' state does not match the declared states")
+        if self.contact is not None:
+            known = {*class_params, *(n.param for n in self.needs), *(d.name for d in self.derived)}
+            for name in self.contact.args:
+                if name not in known:
+                    fail(f"contact law: {name!r} is not a parameter or derived quantity")
         if not self.fmu.identifier.isidentifier():
             fail(f"FMU identifier {self.fmu.identifier!r} is not an identifier")
 

@@ -24,6 +24,7 @@ from . import hybrid_dispatch
 from .flat_rows import (
     HY_IMPACTS,
     HY_MODE,
+    K_HYBRID,
     MAX_OUTPUTS,
     MAX_PARAMS,
     P_HYBRID,
@@ -59,8 +60,6 @@ def hybrid_flat_type(role: str, type_name: str) -> tuple[int, int, tuple, tuple]
     i = _hybrid_index(role, type_name)
     if i < 0:
         return None
-    from .flat_units import K_HYBRID  # the kinds are flat_units'; it imports this module
-
     return K_HYBRID, HYBRID + i, (), hybrid_types()[i].hybrid.inputs
 
 

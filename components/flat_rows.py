@@ -14,6 +14,13 @@ A row (:mod:`.flat_units`) holds:
 
 from __future__ import annotations
 
+# flat unit kinds (K_PENALTY: a massless stator with any penalty law, K_CASING one on a
+# casing, :mod:`.contact_law`; K_HYBRID: every hybrid unit type, :mod:`.flat_hybrid`;
+# K_CONTROLLER: the delayed-feedback controller, its history in a buffer,
+# :mod:`.flat_controller`)
+K_JEFFCOTT, K_TWO_MASS, K_RIGID, K_PENALTY, K_CASING, K_OILFILM, K_LINEAR, K_HYBRID = range(8)
+K_CONTROLLER = 8
+
 Y, H, IV, T, U = 0, 8, 9, 10, 11
 HY_MODE, HY_IMPACTS = Y + 6, Y + 7
 MAX_INPUTS = 7

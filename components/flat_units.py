@@ -28,12 +28,22 @@ from typing import Any
 import numpy as np
 
 from .bearing import film_scale, linear_bearing_force, oilfilm_force
+from .contact_law import law_index
 from .flat_controller import controller_params
 from .flat_hybrid import hybrid_flat_type, hybrid_params, hybrid_step
-from .flat_rows import (  # noqa: F401 - the row layout and statuses, re-exported
+from .flat_rows import (  # noqa: F401 - the row layout, kinds and statuses, re-exported
     HY_IMPACTS,
     HY_MODE,
     IV,
+    K_CASING,
+    K_CONTROLLER,
+    K_HYBRID,
+    K_JEFFCOTT,
+    K_LINEAR,
+    K_OILFILM,
+    K_PENALTY,
+    K_RIGID,
+    K_TWO_MASS,
     MAX_INPUTS,
     MAX_OUTPUTS,
     MAX_PARAMS,
@@ -51,6 +61,7 @@ from .flat_rows import (  # noqa: F401 - the row layout and statuses, re-exporte
 from .jit import njit
 from .kernels import all_finite
 from .linear_propagation import exact_step
+from .registered import declaration
 from .rotor import jeffcott_force, two_mass_disc_force
 from .stator import (
     MODE_FREE,
@@ -62,23 +73,27 @@ from .stator import (
     contact_geometry,
     friction_force,
     friction_reserve,
-    penalty_contact_force,
-    penalty_damping,
     rigid_impact,
     slip_speed,
     sticking_friction,
 )
 from .stepping import OK, advance
-from .unit_odes import CASING, CASING_P, JEFFCOTT, JEFFCOTT_P, TWO_MASS, TWO_MASS_P
-
-# flat unit kinds (K_HYBRID: every hybrid unit type, :mod:`.flat_hybrid`; K_CONTROLLER:
-# the delayed-feedback controller, its history in a buffer, :mod:`.flat_controller`)
-K_JEFFCOTT, K_TWO_MASS, K_RIGID, K_ELASTIC, K_CASING, K_OILFILM, K_LINEAR, K_HYBRID = range(8)
-K_CONTROLLER = 8
+from .unit_odes import (
+    CASING,
+    JEFFCOTT,
+    JEFFCOTT_P,
+    LAW,
+    LAW_AT,
+    PENALTY_P,
+    TWO_MASS,
+    TWO_MASS_P,
+    row_contact_force,
+)
 
 OUT_NO_FILM = 4  # a journal outside the oil film: no bearing force
 OUT_BAD_MODE = 5  # a contact mode that is not 0, 1, 2 or 3
 OUT_NO_MASS = 6  # sustained contact without a disc mass
+OUT_NO_KIND = 8  # a row of no kind this module knows
 # why a step or the outputs failed, as both masters report it
 REASONS = {
     STEP_BAD_INPUT: "an input or the step is not finite",
@@ -89,6 +104,7 @@ REASONS = {
     "the oil-film model has no force there",
     OUT_BAD_MODE: "{name}.contact_mode = {mode} is not 0, 1, 2 or 3",
     OUT_NO_MASS: "{name}.disc_mass must be > 0 for sustained contact",
+    OUT_NO_KIND: "{name} has no row form",
 }
 
 RIGID_P = (
@@ -115,25 +131,61 @@ FLAT_TYPES: dict[tuple[str, str], tuple[int, int, tuple[str, ...], tuple[str, ..
         ("fx", "fy", "journal_fx", "journal_fy"),
     ),
     ("stator", "rigid"): (K_RIGID, -1, RIGID_P, ()),
-    ("stator", "elastic"): (K_ELASTIC, -1, CASING_P, ()),
-    ("stator", "casing"): (K_CASING, CASING, CASING_P, ("x", "y", "vx", "vy")),
     ("bearing", "oilfilm"): (K_OILFILM, -1, OILFILM_P, ()),
     ("bearing", "linear"): (K_LINEAR, -1, LINEAR_P, ()),
     ("controller", "delayed_feedback"): (K_CONTROLLER, -1, (), ()),
 }
 
 
+def _penalty_type(role: str, type_name: str) -> Any:
+    """The declaration of a stator type with a penalty law (:mod:`.contact_law`), or None."""
+    t = declaration(role, type_name)
+    return t if t is not None and t.contact is not None and t.contact.kind == "penalty" else None
+
+
 def flat_type(role: str, type_name: str) -> tuple[int, int, tuple, tuple] | None:
-    """The :data:`FLAT_TYPES` entry of a unit type, the hybrid types' included
-    (:func:`.flat_hybrid.hybrid_flat_type`); None when it has no row form."""
-    return FLAT_TYPES.get((role, type_name)) or hybrid_flat_type(role, type_name)
+    """The :data:`FLAT_TYPES` entry of a unit type, the penalty stators' (from their
+    declaration: on a casing with states, massless without) and the hybrid types'
+    (:func:`.flat_hybrid.hybrid_flat_type`) included; None when it has no row form."""
+    entry = FLAT_TYPES.get((role, type_name))
+    if entry is not None:
+        return entry
+    t = _penalty_type(role, type_name)
+    if t is not None:
+        if t.states:
+            # its ODE reads the disc state (unit_odes.CASING)
+            return K_CASING, CASING, PENALTY_P, ("x", "y", "vx", "vy")
+        return K_PENALTY, -1, PENALTY_P, ()
+    return hybrid_flat_type(role, type_name)
+
+
+def penalty_params(t: Any, params: Mapping[str, Any]) -> np.ndarray:
+    """The parameter row of a penalty stator of declaration ``t``: :data:`PENALTY_P` (a
+    quantity the type does not have is 0), its law's index at ``LAW``, then the
+    quantities its law takes (its parameters and derived quantities) from ``LAW_AT``."""
+    q = dict(params)
+    for d in t.derived:
+        q[d.name] = d.value(q)
+    args = t.contact.args
+    if LAW_AT + len(args) > MAX_PARAMS:
+        raise ValueError(f"{t.role}.{t.type_name}: its contact law takes too many quantities")
+    row = np.zeros(MAX_PARAMS)
+    for i, name in enumerate(PENALTY_P):
+        row[i] = float(q.get(name, 0.0))
+    row[LAW] = law_index(t.contact)
+    for j, name in enumerate(args):
+        row[LAW_AT + j] = float(q[name])
+    return row
 
 
 def flat_params(role: str, type_name: str, params: Mapping[str, Any]) -> np.ndarray:
     """The parameter row of a unit (:data:`FLAT_TYPES` order, zero-padded): the unit's
     parameters plus the quantities its class derives from them when it steps (the
-    penalty damping, the film's force scale); a hybrid unit's kernels' array
-    (:func:`.flat_hybrid.hybrid_params`)."""
+    film's force scale); a penalty stator's (:func:`penalty_params`); a hybrid unit's
+    kernels' array (:func:`.flat_hybrid.hybrid_params`)."""
+    t = _penalty_type(role, type_name)
+    if t is not None:
+        return penalty_params(t, params)
     if (role, type_name) not in FLAT_TYPES:
         return hybrid_params(role, type_name, params)
     row = np.zeros(MAX_PARAMS)
@@ -143,8 +195,6 @@ def flat_params(role: str, type_name: str, params: Mapping[str, Any]) -> np.ndar
         return row
     names = FLAT_TYPES[(role, type_name)][2]
     q = dict(params)
-    if type_name in ("elastic", "casing"):
-        q["contact_damping"] = penalty_damping(q)
     if type_name == "oilfilm":
         q["sigma"] = film_scale(q)
     for i, name in enumerate(names):
@@ -213,7 +263,7 @@ def do_step(kind, ode_kind, exact, n_y, n_in, ode_idx, p, tol, model, st, t, h):
 def _penalty(st, p, cx, cy, cvx, cvy, out):
     rx, ry = st[U] - cx, st[U + 3] - cy
     rvx, rvy = st[U + 6] - cvx, st[U + 9] - cvy
-    fx, fy, fn = penalty_contact_force(rx, ry, rvx, rvy, p[0], p[1], p[2], p[3], p[4], p[5])
+    fx, fy, fn = row_contact_force(rx, ry, rvx, rvy, p)
     dist, nx, ny = contact_geometry(rx, ry)
     gap = p[0] - dist
     out[0], out[1], out[2] = fx, fy, fn
@@ -275,11 +325,11 @@ def outputs(kind, p, st, out):
         return STEP_OK
     if kind == K_RIGID:
         return _rigid(st, p, out)
-    if kind == K_ELASTIC:
-        _penalty(st, p, p[6], p[7], 0.0, 0.0, out)
+    if kind == K_PENALTY:
+        _penalty(st, p, p[4], p[5], 0.0, 0.0, out)
         return STEP_OK
     if kind == K_CASING:
-        _penalty(st, p, p[6] + st[0], p[7] + st[1], st[2], st[3], out)
+        _penalty(st, p, p[4] + st[0], p[5] + st[1], st[2], st[3], out)
         for i in range(4):
             out[6 + i] = st[i]
         return STEP_OK
@@ -289,9 +339,11 @@ def outputs(kind, p, st, out):
             return OUT_NO_FILM
         out[0], out[1] = fx, fy
         return STEP_OK
-    fx, fy = linear_bearing_force(st[U], st[U + 3], st[U + 6], st[U + 9], p[0], p[1])
-    out[0], out[1] = fx, fy
-    return STEP_OK
+    if kind == K_LINEAR:
+        fx, fy = linear_bearing_force(st[U], st[U + 3], st[U + 6], st[U + 9], p[0], p[1])
+        out[0], out[1] = fx, fy
+        return STEP_OK
+    return OUT_NO_KIND
 
 
 def failure_reason(status: int, row: np.ndarray, p: np.ndarray, name: str) -> str:

@@ -4,27 +4,23 @@ A hybrid unit type (:mod:`.hybrid`) brings its own compiled ``rhs``,
 ``events``, ``apply`` and ``output`` kernels.  The engines and the unit
 stepper (:mod:`.stepping`) are compiled and cached by numba, which cannot
 cache a function that takes another function as an argument; so the dispatch
-is written out as source, one branch per hybrid type in registry order, into
-a module under numba's cache directory (named by the hash of its text,
-written once) and imported from there.  A new hybrid type needs no edit here,
+is written out as source, one branch per hybrid type in registry order
+(:mod:`.generated_module`).  A new hybrid type needs no edit here,
 in the stepper or in the engines.
 
 The module is generated on first use of one of its functions (module
 ``__getattr__``), not on import: the unit modules import the stepper, which
 imports this module, while the registry that lists the types is still being
-built.
+built (it hands them over when it is, :mod:`.registered`).
 """
 
 from __future__ import annotations
 
-import hashlib
-import importlib.util
-import os
-import sys
-import tempfile
-from pathlib import Path
 from types import ModuleType
 from typing import Any
+
+from .generated_module import load_generated
+from .registered import registered
 
 # The interface of a hybrid type's kernels: event slots, and what an event did.
 N_EVENTS = 4
@@ -40,9 +36,7 @@ _CALLS = (
 
 def hybrid_types() -> tuple[Any, ...]:
     """The registered hybrid unit types, in registry order (type i has index i)."""
-    from .registry import REGISTRY  # at call time: the registry imports this module's users
-
-    return tuple(t for t in REGISTRY if t.hybrid is not None)
+    return tuple(t for t in registered() if t.hybrid is not None)
 
 
 def _kernel_path(kernel: object) -> tuple[str, str]:
@@ -70,36 +64,8 @@ def dispatch_source() -> str:
     return "\n".join(lines) + "\n"
 
 
-def _write(text: str, path: Path) -> None:
-    try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        # write then rename: a process reading it never sees half a module
-        fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=".tmp")
-        with os.fdopen(fd, "w") as f:
-            f.write(text)
-        os.replace(tmp, path)
-    except OSError as exc:
-        raise OSError(
-            f"cannot write the generated hybrid dispatch module {path} ({exc.strerror}); "
-            "set NUMBA_CACHE_DIR to a writable directory"
-        ) from exc
-
-
 def _load() -> ModuleType:
-    text = dispatch_source()
-    digest = hashlib.sha256(text.encode()).hexdigest()[:16]
-    base = os.environ.get("NUMBA_CACHE_DIR") or tempfile.gettempdir()
-    path = Path(base) / "generated" / f"hybrid_dispatch_{digest}.py"
-    if not path.is_file() or path.read_text() != text:
-        _write(text, path)
-    name = f"{__package__.replace('.', '_')}_hybrid_dispatch_{digest}"
-    if name in sys.modules:
-        return sys.modules[name]
-    spec = importlib.util.spec_from_file_location(name, path)
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[name] = module
-    spec.loader.exec_module(module)
-    return module
+    return load_generated(dispatch_source(), "hybrid_dispatch", __package__, "hybrid dispatch")
 
 
 def __getattr__(name: str) -> Any:

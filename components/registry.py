@@ -12,8 +12,10 @@ from typing import Any
 from .bearing_unit import LINEAR_BEARING, OILFILM_BEARING
 from .controller_unit import DELAYED_FEEDBACK
 from .declaration import DeclarationError, UnitType, Wire
+from .hunt_crossley import HUNT_CROSSLEY_STATOR
 from .oscillator_unit import IMPACT_OSCILLATOR
 from .parameters import Param
+from .registered import register
 from .rotor_unit import JEFFCOTT_ROTOR, TWO_MASS_ROTOR
 from .stator import reduced_mass
 from .stator_unit import CASING_STATOR, ELASTIC_STATOR, RIGID_STATOR
@@ -147,6 +149,7 @@ REGISTRY = Registry(
         RIGID_STATOR,
         ELASTIC_STATOR,
         CASING_STATOR,
+        HUNT_CROSSLEY_STATOR,
         OILFILM_BEARING,
         LINEAR_BEARING,
         DELAYED_FEEDBACK,
@@ -154,3 +157,4 @@ REGISTRY = Registry(
         TWO_DOF_IMPACT_OSCILLATOR,
     )
 )
+register(REGISTRY.types)  # for the modules below the registry (.registered)

@@ -25,7 +25,7 @@ from .parameters import nonnegative, planar_initial_state, positive, real
 # contact_mode input use these numbers.
 MODE_FREE, MODE_SLIDE_POS, MODE_SLIDE_NEG, MODE_STICK = 0, 1, 2, 3
 
-_GEOMETRY = (
+CONTACT_GEOMETRY = (
     positive("clearance", None, "m", "radial clearance d between disc and stator", example=1e-4),
     real("x_offset", 0.0, "m", "stator centre x0 (offset rotor when nonzero)"),
     real("y_offset", 0.0, "m", "stator centre y0 (offset rotor when nonzero)"),
@@ -33,12 +33,12 @@ _GEOMETRY = (
 )
 
 RIGID_PARAMS = (
-    *_GEOMETRY,
+    *CONTACT_GEOMETRY,
     real("restitution", 0.8, "1", "Newton restitution coefficient r", 0.0, 1.0),
 )
 
 ELASTIC_PARAMS = (
-    *_GEOMETRY,
+    *CONTACT_GEOMETRY,
     positive("contact_stiffness", None, "N/m", "penalty contact stiffness kc", example=2e7),
     real(
         "contact_damping",
@@ -233,6 +233,36 @@ def contact_force_components(fn: float, ft: float, nx: float, ny: float) -> tupl
 
 
 @njit
+def penalty_force_components(
+    fn: float,
+    dist: float,
+    nx: float,
+    ny: float,
+    rvx: float,
+    rvy: float,
+    d: float,
+    mu: float,
+    rd: float,
+    w: float,
+) -> tuple[float, float, float]:
+    """Penalty contact force on the disc ``(fx, fy, Fn)`` from the normal force ``fn`` of
+    its law (N, > 0 inward) at distance ``dist`` (m) along the outward normal (nx, ny),
+    with Coulomb friction ``mu max(Fn, 0)`` against the slip of the relative velocity
+    rv (m/s); nothing while the gap is open (``dist <= d``).
+
+    Stateless form (contact whenever ``dist > d``, friction sign from the slip), for a
+    unit that sees only the relative position and velocity; friction is
+    :func:`friction_force` of the slip's sign (zero slip: none), the kernel the
+    reference engines call too.
+    """
+    if dist <= d:
+        return 0.0, 0.0, 0.0
+    mode = slip_mode(slip_speed(rvx, rvy, nx, ny, rd, w))
+    fx, fy = contact_force_components(fn, friction_force(mode, mu, fn, 0.0), nx, ny)
+    return fx, fy, fn
+
+
+@njit
 def penalty_contact_force(
     rx: float,
     ry: float,
@@ -245,23 +275,14 @@ def penalty_contact_force(
     rd: float,
     w: float,
 ) -> tuple[float, float, float]:
-    """Penalty contact force on the disc with Coulomb friction ``mu max(Fn, 0)`` against
-    the slip.
+    """:func:`penalty_force_components` of the Kelvin-Voigt law :func:`penalty_normal`,
+    for the disc's position r (m) and velocity rv (m/s) relative to the stator.
 
-    Stateless form (contact whenever ``dist > d``, friction sign from the
-    slip), for a unit that sees only the relative position and velocity r, rv.
     With ``cc = 0`` and positive slip this is the Chu-Zhang force
     ``-kc (1 - d/e) [rx - mu ry, mu rx + ry]``.  Returns ``(fx, fy, Fn)``.
-
-    Friction is :func:`friction_force` of the slip's sign (zero slip: none),
-    the kernel the reference engines call too.
     """
     fn, dist, nx, ny = penalty_normal_force(rx, ry, rvx, rvy, d, kc, cc)
-    if dist <= d:
-        return 0.0, 0.0, 0.0
-    mode = slip_mode(slip_speed(rvx, rvy, nx, ny, rd, w))
-    fx, fy = contact_force_components(fn, friction_force(mode, mu, fn, 0.0), nx, ny)
-    return fx, fy, fn
+    return penalty_force_components(fn, dist, nx, ny, rvx, rvy, d, mu, rd, w)
 
 
 @njit

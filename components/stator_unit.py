@@ -18,8 +18,9 @@ from typing import Any
 
 import numpy as np
 
+from .contact_law import ContactLaw
 from .declaration import Derived, FmuIdentity, Need, UnitType, Wire, planar_states
-from .flat_units import RowOutputs
+from .flat_units import RowOutputs, flat_params
 from .parameters import ParameterError, nonnegative
 from .stator import (
     CASING_PARAMS,
@@ -27,16 +28,15 @@ from .stator import (
     RIGID_PARAMS,
     constraint_normal_force,
     contact_geometry,
-    penalty_contact_force,
     penalty_damping,
-    penalty_normal_force,
+    penalty_normal,
     rigid_impact,
     slip_speed,
     sticking_friction,
 )
 from .stepping import step_ode
 from .unit import INTEGRATOR_PARAMS, Unit, integer_signal, planar_motion, real_signal
-from .unit_odes import CASING, CASING_P, unit_rhs
+from .unit_odes import CASING, row_contact_force, unit_rhs
 
 ROTOR_PARAMS = (
     nonnegative("speed", 0.0, "rad/s", "spin speed w of the rotor this stator meets"),
@@ -144,11 +144,8 @@ class _Penalty(RowOutputs, Unit):
                 f"restitution = {params['restitution']!r}; or give contact_damping >= 0"
             )
 
-    def _contact_damping(self) -> float:
-        return penalty_damping(self.params)
 
-
-_FORCE_OUTPUTS = (
+PENALTY_OUTPUTS = (
     real_signal("fx", "N", "contact force on the disc along x"),
     real_signal("fy", "N", "contact force on the disc along y"),
     NORMAL_FORCE,
@@ -158,20 +155,27 @@ _FORCE_OUTPUTS = (
 )
 
 
-class ElasticStatorUnit(_Penalty):
-    """Massless elastic stator: penalty contact with Coulomb friction."""
+class MasslessPenaltyStator(RowOutputs, Unit):
+    """A massless stator with a penalty contact law (its type's :mod:`.contact_law`):
+    the contact force on the disc from the disc state alone."""
 
-    type_name = "elastic"
-    summary = "elastic stator: penalty contact force with Coulomb friction on the disc"
-    params_spec = (*ELASTIC_PARAMS, *ROTOR_PARAMS, IMPACT_MASS)
+    role = "stator"
     inputs = DISC_INPUTS
-    outputs = _FORCE_OUTPUTS
+    outputs = PENALTY_OUTPUTS
 
     def _initial_state(self) -> dict[str, Any]:
         return {}
 
     def _advance(self, t: float, h: float) -> None:
         """A massless stator has no dynamics of its own."""
+
+
+class ElasticStatorUnit(_Penalty, MasslessPenaltyStator):
+    """Massless elastic stator: penalty contact with Coulomb friction."""
+
+    type_name = "elastic"
+    summary = "elastic stator: penalty contact force with Coulomb friction on the disc"
+    params_spec = (*ELASTIC_PARAMS, *ROTOR_PARAMS, IMPACT_MASS)
 
 
 class CasingStatorUnit(_Penalty):
@@ -182,7 +186,7 @@ class CasingStatorUnit(_Penalty):
     params_spec = (*CASING_PARAMS, *ROTOR_PARAMS, IMPACT_MASS, *INTEGRATOR_PARAMS)
     inputs = DISC_INPUTS
     outputs = (
-        *_FORCE_OUTPUTS,
+        *PENALTY_OUTPUTS,
         *planar_motion("casing", "casing_"),
     )
 
@@ -191,9 +195,8 @@ class CasingStatorUnit(_Penalty):
         return {"y": np.array([q["x0"], q["y0"], q["vx0"], q["vy0"]], dtype=float), "h": 0.0}
 
     def _advance(self, t: float, h: float) -> None:
-        q = {**self.params, "contact_damping": self._contact_damping()}
-        p = np.array([q[k] for k in CASING_P], dtype=float)
-        st = self.state
+        q, st = self.params, self.state
+        p = flat_params(self.role, self.type_name, q)  # its row: the compiled master's
         st["y"], st["h"] = step_ode(
             CASING, t, t + h, st["y"], st["h"], p, self.input_rows(("x", "y", "vx", "vy")),
             q["rtol"], q["atol"],
@@ -230,6 +233,12 @@ RIGID_STATOR = UnitType(
         constraint_normal_force,
         sticking_friction,
     ),
+    contact=ContactLaw("rigid"),
+)
+
+# The Kelvin-Voigt law of the brief: Fn = kc (dist - d) + cc vn.
+KELVIN_VOIGT = ContactLaw(
+    "penalty", penalty_normal, ("clearance", "contact_stiffness", "penalty_damping")
 )
 
 ELASTIC_STATOR = UnitType(
@@ -240,7 +249,8 @@ ELASTIC_STATOR = UnitType(
     derived=(PENALTY_DAMPING,),
     wiring=DISC_WIRING,
     length_scale=lambda q: q["clearance"],
-    kernels=(contact_geometry, penalty_contact_force, penalty_normal_force),
+    kernels=(contact_geometry, row_contact_force, penalty_normal),
+    contact=KELVIN_VOIGT,
 )
 
 CASING_STATOR = UnitType(
@@ -253,5 +263,6 @@ CASING_STATOR = UnitType(
     derived=(PENALTY_DAMPING,),
     wiring=DISC_WIRING,
     length_scale=lambda q: q["clearance"],
-    kernels=(contact_geometry, penalty_contact_force, penalty_normal_force, unit_rhs),
+    kernels=(contact_geometry, row_contact_force, penalty_normal, unit_rhs),
+    contact=KELVIN_VOIGT,
 )

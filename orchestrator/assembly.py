@@ -106,7 +106,8 @@ def scenario_protocols(scenario: Any, settings: CosimSettings) -> list[EventProt
     units = scenario.graph.units
     if "stator" not in units:
         return []
-    if units["stator"].type == "rigid":
+    # the protocol follows the stator type's declared contact (components.contact_law)
+    if unit_type("stator", units["stator"].type).contact.kind == "rigid":
         v_chat = settings.chatter_tol * scenario.graph.scales.velocity
         min_flight = 10.0 * settings.event_tol * scenario.graph.scales.forcing_period
         return [RigidContact("stator", "rotor", v_chat, min_flight)]

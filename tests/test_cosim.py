@@ -29,6 +29,7 @@ CASES = {
     "jeffcott_offset_rigid_stator": (0.06, 3e-6, False),
     "jeffcott_elastic_stator": (0.03, 1e-6, True),
     "jeffcott_elastic_casing": (0.03, 1e-6, True),
+    "jeffcott_hunt_crossley_stator": (0.03, 1e-6, True),
     "two_mass_oilfilm_rub": (0.05, 1e-6, True),
     "jeffcott_delayed_feedback": (0.2, 1e-6, True),
     "jeffcott_chaos_control": (0.1, 1e-6, True),

@@ -107,6 +107,11 @@ PARAMETER_SETS = {
         stimulus_params("RubcosimElasticStator"),
         {**stimulus_params("RubcosimElasticStator"), "x_offset": 1e-5, "contact_damping": 50.0},
     ),
+    "RubcosimHuntCrossleyStator": (
+        {},
+        stimulus_params("RubcosimHuntCrossleyStator"),
+        {**stimulus_params("RubcosimHuntCrossleyStator"), "x_offset": 1e-5, "exponent": 1.0},
+    ),
     "RubcosimCasingStator": (
         {},
         stimulus_params("RubcosimCasingStator"),
@@ -154,6 +159,7 @@ INPUT_SIZES = {
     "RubcosimDelayedFeedbackController": {"x": 2e-5, "y": 2e-5, "vx": 0.02, "vy": 0.02},
     "RubcosimElasticStator": {"x": 1.2e-4, "y": 1.2e-4, "vx": 0.05, "vy": 0.05},
     "RubcosimCasingStator": {"x": 1.2e-4, "y": 1.2e-4, "vx": 0.05, "vy": 0.05},
+    "RubcosimHuntCrossleyStator": {"x": 1.2e-4, "y": 1.2e-4, "vx": 0.05, "vy": 0.05},
     "RubcosimTwoMassRotor": {
         "fx": 100.0,
         "fy": 100.0,
@@ -1161,6 +1167,7 @@ CHANGED_PARAMETER = {
     "RubcosimDelayedFeedbackController": ("gain", 5e4),
     "RubcosimElasticStator": ("friction", 0.3),
     "RubcosimCasingStator": ("damping", 50.0),
+    "RubcosimHuntCrossleyStator": ("friction", 0.3),
     "RubcosimTwoMassRotor": ("shaft_damping", 10.0),
     "RubcosimLinearBearing": ("damping", 300.0),
     "RubcosimOilFilmBearing": ("viscosity", 0.05),

@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 from rubcosim.components.bearing import oilfilm_sigma
+from rubcosim.components.contact_law import max_law_args
 from rubcosim.components.declaration import DeclarationError, Derived
 from rubcosim.components.parameters import nonnegative
 from rubcosim.components.registry import REGISTRY
@@ -33,8 +34,12 @@ def test_every_packed_quantity_has_its_own_slot_and_every_type_its_own_code():
             assert getattr(S, constant) == L.LAYOUT.p[(t.role, name)]
         assert getattr(S, f"{t.role}_{t.type_name}".upper()) == L.LAYOUT.codes[t.key] > 0
     ints = [*L.LAYOUT.ip_type.values(), *L.LAYOUT.ip_choice.values()]
-    ints += [*L.LAYOUT.ip_state.values(), S.IP_FAMILY, S.IP_NSTATE]
+    ints += [*L.LAYOUT.ip_state.values(), *L.LAYOUT.ip_law.values(), S.IP_FAMILY, S.IP_NSTATE]
     assert sorted(ints) == list(range(L.N_IP))
+    # a penalty law's quantities sit side by side, apart from every packed quantity
+    assert L.LAYOUT.ip_law["stator"] == S.IP_STATOR_LAW
+    law = list(range(S.P_STATOR_LAW_0, S.P_STATOR_LAW_0 + max_law_args()))
+    assert set(law).isdisjoint(slots) and max(law) < L.N_P
     # a state's initial value goes to y0, a choice to ip: neither takes a real slot
     assert ("rotor", "x0") not in L.LAYOUT.p and ("controller", "feedback") not in L.LAYOUT.p
     assert S.CONTROLLER_FEEDBACK_VELOCITY == 1

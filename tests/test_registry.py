@@ -204,3 +204,27 @@ def test_other_bad_entries_are_refused_naming_them():
         Registry((*others, declare(needs=(Need("speed", "rotor.spin"),))))
     with pytest.raises(DeclarationError, match=r"stator\.elastic is declared twice"):
         Registry((*REGISTRY.types, ELASTIC_STATOR))
+
+
+def test_a_contact_law_reading_an_unknown_quantity_is_refused_naming_it():
+    from rubcosim.components.contact_law import ContactLaw
+    from rubcosim.components.stator import penalty_normal
+
+    law = ContactLaw("penalty", penalty_normal, ("clearance", "stiffness_kc"))
+    with pytest.raises(DeclarationError, match="contact law: 'stiffness_kc' is not a parameter"):
+        UnitType(ElasticStatorUnit, ELASTIC_STATOR.params, FmuIdentity("X"), contact=law)
+    with pytest.raises(ValueError, match="only a penalty contact, has a normal law"):
+        ContactLaw("rigid", penalty_normal)
+    with pytest.raises(ValueError, match="contact kind 'soft' is not one of"):
+        ContactLaw("soft")
+
+
+def test_every_stator_type_declares_its_contact_and_the_penalty_laws_are_listed_once():
+    from rubcosim.components.contact_law import penalty_laws
+
+    stators = [t for t in REGISTRY if t.role == "stator"]
+    assert all(t.contact is not None for t in stators)
+    declared = [t.contact for t in stators if t.contact.kind == "penalty"]
+    assert list(penalty_laws()) == list(dict.fromkeys(declared))
+    # the elastic stator and the casing share the Kelvin-Voigt law
+    assert unit_type("stator", "elastic").contact is unit_type("stator", "casing").contact

@@ -40,6 +40,7 @@ STIMULI = {
     ("stator", "rigid"): ({"friction": 0.2, "disc_radius": 0.05, "speed": W}, None),
     ("stator", "elastic"): ({"friction": 0.1, "impact_mass": 10.0, "restitution": 0.7}, None),
     ("stator", "casing"): ({"friction": 0.1, "impact_mass": 10.0, "restitution": 0.7}, None),
+    ("stator", "hunt_crossley"): ({"friction": 0.1, "restitution": 0.7}, None),
     ("bearing", "oilfilm"): ({}, lambda t: {"x": 3e-5 * math.cos(700 * t), "vx": 0.01}),
     ("bearing", "linear"): ({}, lambda t: {"x": 3e-5 * math.cos(700 * t), "vy": 0.01}),
     ("controller", "delayed_feedback"): (

@@ -15,6 +15,8 @@ declarations (:mod:`rubcosim.components.registry`), in registry order:
   2, ... in registry order), the index of each choice parameter's value
   (``IP_CONTROLLER_FEEDBACK`` holds ``CONTROLLER_FEEDBACK_POSITION``, ...) and
   the state offset of each declared state (``IP_ROTOR_JOURNAL_X``; -1 if absent).
+* a role whose types have penalty contact laws: the law's index (``IP_STATOR_LAW``,
+  -1 for none) and the quantities it takes, side by side from ``P_STATOR_LAW_0``.
 
 Every slot is a module-level integer (numba compiles them as constants into
 the kernels of :mod:`.system`, where this module is re-exported); adding a
@@ -34,6 +36,7 @@ from typing import Any
 
 import numpy as np
 
+from rubcosim.components.contact_law import law_index
 from rubcosim.components.declaration import UnitType
 
 # Event kinds and the number of event slots are shared with the hybrid unit types.
@@ -96,6 +99,8 @@ class Layout:
     codes: dict[tuple[str, str], int] = field(default_factory=dict)  # (role, type) -> code
     ip_choice: dict[tuple[str, str], int] = field(default_factory=dict)  # (role, param)
     ip_state: dict[tuple[str, str], int] = field(default_factory=dict)  # (role, state)
+    ip_law: dict[str, int] = field(default_factory=dict)  # role -> slot of its law's index
+    p_law: dict[str, int] = field(default_factory=dict)  # role -> first slot of its law's args
     constants: dict[str, int] = field(default_factory=dict)  # name -> value, exported
     n_p: int = 0
     n_ip: int = 0
@@ -109,7 +114,7 @@ class Layout:
     def new_arrays(self, n_p: int = 0) -> tuple[np.ndarray, np.ndarray]:
         """Zero ``p`` (at least ``n_p`` long) and ``ip`` with every state offset -1."""
         ip = np.zeros(self.n_ip, dtype=np.int64)
-        for slot in self.ip_state.values():
+        for slot in (*self.ip_state.values(), *self.ip_law.values()):
             ip[slot] = -1
         return np.zeros(max(self.n_p, n_p)), ip
 
@@ -121,6 +126,10 @@ class Layout:
             p[self.p[(role, name)]] = values[name]
         for name, choices in choice_params(t).items():
             ip[self.ip_choice[(role, name)]] = choices.index(values[name])
+        if t.contact is not None and t.contact.kind == "penalty":
+            ip[self.ip_law[role]] = law_index(t.contact)
+            for j, name in enumerate(t.contact.args):
+                p[self.p_law[role] + j] = values[name]
 
 
 def rotor_family_layout(types: Iterable[UnitType]) -> Layout:
@@ -158,6 +167,15 @@ def rotor_family_layout(types: Iterable[UnitType]) -> Layout:
                         layout._constant(key, index)  # (a second type with the choice: skip)
             for s in t.states:
                 n_ip = add(layout.ip_state, (role, s.name), f"IP_{role}_{s.name}", n_ip)
+        # a penalty law's index, and the quantities it takes side by side (the engines
+        # call every law alike, :func:`rubcosim.components.contact_law.penalty_law_normal`)
+        laws = [t.contact for t in kinds if t.contact is not None and t.contact.kind == "penalty"]
+        if laws:
+            n_ip = add(layout.ip_law, role, f"IP_{role}_LAW", n_ip)
+            layout.p_law[role] = n_p
+            for j in range(max(len(law.args) for law in laws)):
+                layout._constant(f"P_{role}_LAW_{j}", n_p)
+                n_p += 1
     layout.n_p, layout.n_ip = n_p, n_ip
     return layout
 

@@ -45,6 +45,7 @@ import math
 import numba as nb
 import numpy as np
 
+from rubcosim.components import contact_law
 from rubcosim.components.bearing import linear_bearing_force, oilfilm_force
 from rubcosim.components.controller import delay_at, feedback_force
 from rubcosim.components.hybrid_dispatch import (
@@ -67,7 +68,6 @@ from rubcosim.components.stator import (
     contact_geometry,
     friction_force,
     friction_reserve,
-    penalty_normal,
     rigid_impact,
     settle_mode,
     sticking_friction,
@@ -184,9 +184,8 @@ def contact_normal_force(fx, fy, p, ip, dist, nx, ny, vn, vt):
         return constraint_normal_force(
             fx, fy, nx, ny, vt, vn, dist, p[P_STATOR_CLEARANCE], p[P_ROTOR_MASS], p[P_OMEGA_B]
         )
-    return penalty_normal(
-        dist, vn, p[P_STATOR_CLEARANCE], p[P_STATOR_CONTACT_STIFFNESS], p[P_STATOR_PENALTY_DAMPING]
-    )
+    # the stator type's declared law (components.contact_law), its quantities side by side
+    return contact_law.penalty_law_normal(ip[IP_STATOR_LAW], dist, vn, p, P_STATOR_LAW_0)
 
 
 @nb.njit(cache=True, inline="always")
