@@ -30,9 +30,35 @@ from types import ModuleType
 from typing import Any
 
 from .generated_module import load_generated
+from .jit import njit
 from .registered import registered
 
 CONTACT_KINDS = ("rigid", "penalty")
+
+# What a co-simulation master watches of a stator, by its contact kind and state: rows
+# of (output crossing zero, direction -1 falling / +1 rising, the event it makes, the
+# output holding its time derivative or "").  A rigid stator's state is its contact
+# mode (:data:`.stator.MODE_FREE` ... ``MODE_STICK``, the mode the master keeps); a
+# penalty stator's is whether its gap is open (0, ``gap > 0``) or closed (1).  Both
+# masters read this table; the reference watches the same quantities of its own state.
+WATCHED: dict[str, tuple[tuple[tuple[str, int, str, str], ...], ...]] = {
+    "rigid": (
+        (("gap", -1, "impact", "gap_rate"),),  # free
+        (("normal_force", -1, "release", ""), ("slip", -1, "slip", "")),  # sliding, slip > 0
+        (("normal_force", -1, "release", ""), ("slip", 1, "slip", "")),  # sliding, slip < 0
+        (("normal_force", -1, "release", ""), ("hold_margin", -1, "slip", "")),  # sticking
+    ),
+    "penalty": (
+        (("gap", -1, "contact_on", "gap_rate"),),  # open
+        (("gap", 1, "contact_off", "gap_rate"),),  # closed
+    ),
+}
+
+
+@njit
+def penalty_state(gap: float) -> int:
+    """A penalty stator's state in :data:`WATCHED`: 0 open (``gap > 0``, m), 1 closed."""
+    return 0 if gap > 0.0 else 1
 
 
 @dataclass(frozen=True)

@@ -17,6 +17,7 @@ import math
 
 import numpy as np
 
+from rubcosim.components.contact_law import penalty_state
 from rubcosim.components.jit import njit
 from rubcosim.components.root_finding import (
     F_CUR,
@@ -33,7 +34,6 @@ from rubcosim.components.root_finding import (
 )
 from rubcosim.components.stator import (
     MODE_FREE,
-    MODE_SLIDE_POS,
     MODE_STICK,
     chattering_ended,
     settle_mode,
@@ -42,10 +42,7 @@ from rubcosim.components.stator import (
 from .coupling_kernels import PI_ERR_START, crossing_bracket, predicted_to_cross, secant_offset
 from .flat_layout import (
     EV_IMPACT,
-    EV_OFF,
-    EV_ON,
     EV_RELEASE,
-    EV_SLIP,
     EVENTS_OFF,
     F_PERIOD,
     F_T_TOL,
@@ -61,7 +58,6 @@ from .flat_layout import (
     N_EVENTS,
     N_PROBES,
     PENALTY_GAP,
-    PENALTY_GAP_RATE,
     PF_MIN_FLIGHT,
     PF_V_CHAT,
     PR_RIGID,
@@ -81,6 +77,7 @@ from .flat_layout import (
     RIGID_SLIP,
     RIGID_VX_PLUS,
     RIGID_VY_PLUS,
+    WATCH,
 )
 from .flat_round import fail, set_input, settle, step, unit_step
 
@@ -97,27 +94,22 @@ def _add(inds, n, unit, output, direction, kind, rate, proto):
 
 @njit(inline="always")
 def indicators(G, S, inds):
-    """Fill ``inds`` with the indicators the protocols watch now; returns how many."""
+    """Fill ``inds`` with the indicators the protocols watch now (the table
+    ``WATCH``, from :data:`rubcosim.components.contact_law.WATCHED`); returns how many."""
     n = 0
     if G.iset[I_EVENTS] == EVENTS_OFF:
         return 0
     for p in range(G.pr_kind.shape[0]):
-        s = G.pr_stator[p]
-        if G.pr_kind[p] == PR_RIGID:
-            mode = int(S.prs[p, PS_MODE])
-            if mode == MODE_FREE:
-                n = _add(inds, n, s, RIGID_GAP, -1, EV_IMPACT, RIGID_GAP_RATE, p)
-                continue
-            n = _add(inds, n, s, RIGID_NORMAL, -1, EV_RELEASE, -1, p)
-            if mode == MODE_STICK:
-                n = _add(inds, n, s, RIGID_HOLD_MARGIN, -1, EV_SLIP, -1, p)
-            else:
-                d = -1 if mode == MODE_SLIDE_POS else 1
-                n = _add(inds, n, s, RIGID_SLIP, d, EV_SLIP, -1, p)
-        elif S.out[s, PENALTY_GAP] > 0.0:
-            n = _add(inds, n, s, PENALTY_GAP, -1, EV_ON, PENALTY_GAP_RATE, p)
+        s, kind = G.pr_stator[p], G.pr_kind[p]
+        if kind == PR_RIGID:
+            state = int(S.prs[p, PS_MODE])
         else:
-            n = _add(inds, n, s, PENALTY_GAP, 1, EV_OFF, PENALTY_GAP_RATE, p)
+            state = penalty_state(S.out[s, PENALTY_GAP])
+        for j in range(WATCH.shape[2]):
+            w = WATCH[kind, state, j]
+            if w[0] < 0:
+                break
+            n = _add(inds, n, s, w[0], w[1], w[2], w[3], p)
     return n
 
 

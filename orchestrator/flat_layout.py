@@ -18,9 +18,11 @@ from __future__ import annotations
 
 from collections import namedtuple
 
+import numpy as np
 from numba.core import types
 from numba.experimental import structref
 
+from rubcosim.components.contact_law import WATCHED
 from rubcosim.components.jit import njit
 from rubcosim.components.rotor_unit import JeffcottRotorUnit, TwoMassRotorUnit
 from rubcosim.components.stator_unit import (
@@ -148,6 +150,26 @@ assert _slots(TwoMassRotorUnit.inputs, "reset_vx", "reset_vy", "reset_counter") 
     RESET_VY_INPUT,
     RESET_COUNTER_INPUT,
 )
+
+
+# What the protocols watch (rubcosim.components.contact_law.WATCHED) as numbers, for the
+# compiled master: WATCH[protocol kind, state, row] = (output slot, direction, event
+# kind, rate slot or -1), rows past the state's last with output slot -1.
+def _watch_table() -> np.ndarray:
+    kinds = {PR_RIGID: ("rigid", RigidStatorUnit), PR_ELASTIC: ("penalty", ElasticStatorUnit)}
+    rows = max(len(r) for table in WATCHED.values() for r in table)
+    states = max(len(table) for table in WATCHED.values())
+    watch = np.full((len(kinds), states, rows, 4), -1, np.int64)
+    for code, (kind, unit) in kinds.items():
+        for state, watched in enumerate(WATCHED[kind]):
+            for j, (output, direction, event, rate) in enumerate(watched):
+                rate_slot = _slots(unit.outputs, rate)[0] if rate else -1
+                out_slot = _slots(unit.outputs, output)[0]
+                watch[code, state, j] = out_slot, direction, EVENT_KINDS.index(event), rate_slot
+    return watch
+
+
+WATCH = _watch_table()
 
 # how a run ends or pauses (what the loop returns), and why it failed (S.info)
 RUNNING, DONE, PAUSED, NEED_ROOM, FAILED = range(5)

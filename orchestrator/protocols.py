@@ -11,13 +11,8 @@ from __future__ import annotations
 import math
 from typing import Any, Protocol
 
-from rubcosim.components.stator import (
-    MODE_FREE,
-    MODE_SLIDE_POS,
-    MODE_STICK,
-    chattering_ended,
-    settle_mode,
-)
+from rubcosim.components.contact_law import WATCHED, penalty_state
+from rubcosim.components.stator import MODE_FREE, MODE_STICK, chattering_ended, settle_mode
 
 from .events import Indicator
 
@@ -31,6 +26,12 @@ class MasterView(Protocol):
     def apply_now(self, unit: str) -> None: ...
 
     def settle(self) -> None: ...
+
+
+def watched(kind: str, state: int, stator: str) -> list[Indicator]:
+    """The indicators of ``stator`` in ``state`` of its contact ``kind`` (the table
+    :data:`rubcosim.components.contact_law.WATCHED`, which the compiled master reads too)."""
+    return [Indicator(stator, o, d, k, r or None) for o, d, k, r in WATCHED[kind][state]]
 
 
 class EventProtocol:
@@ -66,13 +67,7 @@ class RigidContact(EventProtocol):
         self.state = {"mode": MODE_FREE, "counter": 0, "last_impact": -math.inf, "scale": 0.0}
 
     def indicators(self, master: MasterView) -> list[Indicator]:
-        s, mode = self.stator, self.state["mode"]
-        if mode == MODE_FREE:
-            return [Indicator(s, "gap", -1, "impact", rate="gap_rate")]
-        release = Indicator(s, "normal_force", -1, "release")
-        if mode == MODE_STICK:
-            return [release, Indicator(s, "hold_margin", -1, "slip")]
-        return [release, Indicator(s, "slip", -1 if mode == MODE_SLIDE_POS else 1, "slip")]
+        return watched("rigid", self.state["mode"], self.stator)
 
     def overdue(self, master: MasterView) -> Indicator | None:
         """A disc found inside the stator, still approaching, missed an impact (a rebound
@@ -145,9 +140,7 @@ class ElasticContact(EventProtocol):
         self.state = {}
 
     def indicators(self, master: MasterView) -> list[Indicator]:
-        if master.out[self.stator]["gap"] > 0.0:
-            return [Indicator(self.stator, "gap", -1, "contact_on", rate="gap_rate")]
-        return [Indicator(self.stator, "gap", 1, "contact_off", rate="gap_rate")]
+        return watched("penalty", penalty_state(master.out[self.stator]["gap"]), self.stator)
 
     def handle(self, master: MasterView, ind: Indicator) -> str:
         return ind.kind
