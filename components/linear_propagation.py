@@ -72,41 +72,46 @@ THETA13 = 5.371920351148152
 N_BASIS = 5  # 1, sigma, sigma^2 / 2, cos(w t), sin(w t)
 
 
+# The largest scale factor balancing gives a state (and 1 / it the smallest): far past
+# any real ratio of scales, well inside the doubles, so that a matrix with a row or column
+# of (almost) zeros never drives a factor to infinity.
+MAX_SCALE = 2.0**300
+
+
 @njit
 def balance(M: np.ndarray, sweeps: int = 3) -> np.ndarray:
     """Scale factors ``d`` (powers of 2, so exact) such that ``M[i, j] d[j] / d[i]`` has
     rows and columns of similar norms (Parlett & Reinsch's balancing, one index at a
-    time when compiled, all at once in plain numpy):
+    time, each factor within [1 / MAX_SCALE, MAX_SCALE]):
     a state in metres beside one in m/s would otherwise let the larger entries set the
-    exponential's round-off.  Plain loops when compiled (no temporaries), vectorised in
-    an FMU's plain-numpy copy."""
+    exponential's round-off.  Plain loops when compiled (no temporaries); an FMU's
+    plain-numpy copy takes each index's sums as products of a row and a column, the
+    same steps (scaling all indices at once, as it did, could overflow)."""
     n = M.shape[0]
     d = np.ones(n)
-    if not USE_NUMBA:
-        absm = np.abs(M)
-        diag = np.diag(absm).copy()
-        for _ in range(sweeps):
-            B = absm * (d.reshape(1, n) / d.reshape(n, 1))
-            c = B.sum(axis=0) - diag
-            r = B.sum(axis=1) - diag
-            ok = (c > 0.0) & (r > 0.0)
-            ratio = np.where(ok, r, 1.0) / np.where(ok, c, 1.0)
-            d = d * np.exp2(np.floor(0.5 * np.log2(ratio) + 0.5))
-        return d
     inv = np.ones(n)  # 1 / d, exact (powers of 2): products where divisions would be slow
+    if not USE_NUMBA:
+        off = np.abs(M)
+        np.fill_diagonal(off, 0.0)
     for _ in range(sweeps):
         for i in range(n):  # one index at a time, with the others' current scaling
-            ci, ri = 0.0, 0.0
-            for j in range(n):
-                if j != i:
-                    ci += abs(M[j, i]) * inv[j]
-                    ri += abs(M[i, j]) * d[j]
-            ci *= d[i]
-            ri *= inv[i]
-            if ci > 0.0 and ri > 0.0:
-                f = 2.0 ** math.floor(0.5 * math.log2(ri / ci) + 0.5)
-                d[i] *= f
-                inv[i] /= f
+            if not USE_NUMBA:  # Python floats: a ratio past the doubles is inf, silently
+                ci = float(off[:, i] @ inv) * float(d[i])
+                ri = float(off[i, :] @ d) * float(inv[i])
+            else:
+                ci, ri = 0.0, 0.0
+                for j in range(n):
+                    if j != i:
+                        ci += abs(M[j, i]) * inv[j]
+                        ri += abs(M[i, j]) * d[j]
+                ci *= d[i]
+                ri *= inv[i]
+            ratio = ri / ci if ci > 0.0 else 0.0
+            if 0.0 < ratio < math.inf:  # (a ratio past the doubles: left as it is)
+                f = 2.0 ** math.floor(0.5 * math.log2(ratio) + 0.5)
+                if 1.0 / MAX_SCALE <= d[i] * f <= MAX_SCALE:
+                    d[i] *= f
+                    inv[i] /= f
     return d
 
 

@@ -244,3 +244,29 @@ def test_modal_coordinates_are_refused_where_the_matrix_is_defective(damping, st
     w = 0.7 * WN
     model = affine_model(JEFFCOTT, np.array([M, damping, stiffness, E, w, 0.0]), 4, 2, w)
     assert ModalPropagator.build(model, w) is None
+
+
+def test_balancing_is_finite_and_the_same_in_the_compiled_kernel_and_an_fmus_plain_copy(
+    monkeypatch,
+):
+    # random matrices whose entries span 24 decades, and two whose rows and columns are
+    # (nearly) empty: the plain copy used to scale every index at once, which
+    # overflowed on such a matrix (seen in the FMU fuzz of the two-mass rotor)
+    from rubcosim.components import linear_propagation as lp
+
+    rng = np.random.default_rng(1)
+    cases = [rng.standard_normal((9, 9)) * 10.0 ** rng.uniform(-12, 12, (9, 9)) for _ in range(50)]
+    m1 = np.zeros((4, 4))
+    m1[0, 1], m1[1, 0], m1[2, 3], m1[3, 2] = 1e-300, 1e300, 1.0, -1e6
+    m2 = np.eye(5)
+    m2[0, :] = 0.0
+    m2[0, 1], m2[1, 0] = 1e-310, 1e308
+    for m in [*cases, m1, m2]:
+        compiled = lp.balance(m)
+        with monkeypatch.context() as patch:
+            patch.setattr(lp, "USE_NUMBA", False)
+            with np.errstate(all="raise"):
+                plain = lp.balance.py_func(m)
+        assert np.all(np.isfinite(compiled)) and np.all(compiled > 0.0)
+        assert np.array_equal(compiled, plain)
+        assert np.all(np.abs(np.log2(compiled)) <= 300.0)
