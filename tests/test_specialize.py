@@ -16,6 +16,7 @@ import pytest
 from rubcosim.reference import system as S
 from rubcosim.reference.model_calls import events, outputs
 from rubcosim.reference.specialize import MODEL_MODULES, model_key, model_label, specialized
+from rubcosim.reference.system_outputs import outputs as system_outputs
 from rubcosim.scenario import load_scenario
 
 
@@ -206,7 +207,7 @@ def _kernel_values(system, rng: np.random.Generator, copied: bool) -> list[np.nd
                 S.rhs(0.01, y, yd, mode, p, ip, dy)
                 values.append(dy)
                 S.events(0.01, y, yd, mode, p, ip, g, dirs, rates)
-                S.outputs(0.01, y, yd, mode, p, ip, out)
+                system_outputs(0.01, y, yd, mode, p, ip, out)
             values += [g, dirs.astype(float), rates.astype(float), out]
     return values
 

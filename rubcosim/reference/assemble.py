@@ -17,6 +17,7 @@ from rubcosim.components.registry import REGISTRY
 
 from . import system as S
 from .layout import LAYOUT
+from .system_outputs import output_names
 
 # Relative size of the rebound normal speed (to the system's velocity scale)
 # below which chattering is declared over and the contact becomes sustained.
@@ -108,7 +109,7 @@ def _hybrid_system(u: UnitNode, chatter_tol: float) -> System:
         mode0=int(mode0),
         state_names=names,
         state_scale=_state_scale({u.role: u}, names, scales.length, scales.velocity),
-        output_names=S.output_names(ip),
+        output_names=output_names(ip),
         forcing_period=scales.forcing_period,
         velocity_scale=scales.velocity,
         units={u.role: u},
@@ -202,7 +203,7 @@ def _rotor_system(units: Mapping[str, UnitNode], chatter_tol: float) -> System:
         mode0=S.MODE_FREE,
         state_names=names,
         state_scale=_state_scale(units, names, scales.length, scales.velocity),
-        output_names=S.output_names(ip),
+        output_names=output_names(ip),
         forcing_period=scales.forcing_period,
         velocity_scale=scales.velocity,
         units=dict(units),

@@ -96,7 +96,7 @@ def apply_event(k, t, y, yd, mode, p, model):
 
 @nb.njit(cache=True, inline="always")
 def outputs(t, y, yd, mode, p, model, out):
-    """The recorded outputs (:func:`.system.output_names`) into ``out``."""
+    """The recorded outputs (:func:`.system_outputs.output_names`) into ``out``."""
     model[M_OUTPUTS](t, y, yd, mode, p, model[M_IP], out)
 
 

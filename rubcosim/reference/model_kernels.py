@@ -22,7 +22,8 @@ import numba as nb
 from rubcosim.components.dop853 import dense_stages, rk_stages
 
 from .model_calls import APPLY, DENSE, EVENTS, KIND_BASE, OUTPUTS, RHS, STEP
-from .system import apply_event, events, outputs, rhs
+from .system import apply_event, events, rhs
+from .system_outputs import outputs
 
 
 @nb.njit(cache=True, inline="always")

@@ -48,7 +48,7 @@ ROOT = "rubcosim.reference.system"
 # of these (numba resolves a copy's globals when it compiles, not on import).  The
 # engines' machinery is not among them: it calls a model through the pointers of its
 # model tuple (:mod:`.model_calls`) and is compiled once for every model.
-MODEL_MODULES = (ROOT, "rubcosim.reference.model_kernels")
+MODEL_MODULES = (ROOT, "rubcosim.reference.system_outputs", "rubcosim.reference.model_kernels")
 _HYBRID = ("hybrid_rhs", "hybrid_events", "hybrid_apply", "hybrid_outputs")
 _IP_READ = re.compile(r"\bip\[(?:S\.)?(IP_\w+)\]")
 # Which slots of ``ip`` a copy compiles in as constants: its scope.
@@ -126,7 +126,7 @@ def _rewrite_imports(module: str, text: str, constants: dict[str, int]) -> str:
             continue
         target = _absolute(module, node)
         names = node.names
-        if target == "rubcosim.components.hybrid_dispatch" and module == ROOT:
+        if target == "rubcosim.components.hybrid_dispatch":
             model = [a for a in names if a.name in _HYBRID]
             rest = [a for a in names if a.name not in _HYBRID]
             new = [ast.ImportFrom("model", model, 1)]
