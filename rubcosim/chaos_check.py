@@ -97,6 +97,8 @@ def impacts_after(result: Any, t: float) -> int:
         return int(np.count_nonzero(events.t[events.of_kind("impact")] > t))
     if "oscillator.impacts" in result.names:
         counts = result.output("oscillator.impacts")
+        if counts.size == 0:
+            return 0
         k = int(np.searchsorted(result.t, t, side="right"))
         return int(counts[-1] - counts[k - 1]) if k else int(counts[-1])
     return int(np.count_nonzero(result.events_of_kind("impact") > t))

@@ -10,6 +10,7 @@ the report also says how much of the difference chaos accounts for
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 from typing import Any
 
@@ -19,16 +20,14 @@ from rubcosim.orchestrator.assembly import run_cosim
 from rubcosim.orchestrator.master import CosimResult
 from rubcosim.orchestrator.settings import CosimSettings
 
-from .chaos_check import assess, output_errors, worst
+from .chaos_check import assess, impacts_after, output_errors, worst
 from .timegrid import output_times
 
 
-def impact_count(scenario: Any, result: CosimResult) -> int:
-    """Impacts of a co-simulation: the master's impact events, or an oscillator's own count."""
-    if "oscillator.impacts" in result.names:
-        values = result.output("oscillator.impacts")
-        return int(values[-1]) if values.size else 0
-    return int(result.counters.get("events_impact", 0))
+def impact_count(result: CosimResult) -> int:
+    """Impacts of a co-simulation: the master's impact events, or an oscillator's own count
+    (:func:`.chaos_check.impacts_after` the start)."""
+    return impacts_after(result, -math.inf)
 
 
 def nearest_differences(times: np.ndarray, reference: np.ndarray) -> np.ndarray:
@@ -84,7 +83,7 @@ def compare(
         "master": co.master,
         "outputs": outputs,
         "worst_rel_error": worst(outputs),
-        "impacts": {"reference": int(ref_impacts.size), "cosim": impact_count(scenario, co)},
+        "impacts": {"reference": int(ref_impacts.size), "cosim": impact_count(co)},
         "impact_time_max_diff_s": float(diffs.max()) if k else None,  # to the nearest one
         "impacts_compared": int(k),
         "wall_time_s": {"reference": ref.result.wall_time_s, "cosim": co.wall_time_s},
