@@ -16,22 +16,12 @@ from typing import Any
 
 import numpy as np
 
-from .controller import (
-    CONTROLLER_PARAMS,
-    MODULATION_SHAPES,
-    PIECE_TOL,
-    base_delay,
-    delay_at,
-    delayed_arrivals,
-    etdas_blend,
-    feedback_force,
-    piece_index,
-    switch_interval,
-)
+from .controller import CONTROLLER_PARAMS, base_delay, delay_at, etdas_blend, feedback_force
 from .declaration import Derived, FmuIdentity, Need, UnitType, Wire
-from .delay_history import FILTER_PAIR, ROW, SAMPLE, first_kept, lookup
+from .delay_history import ROW
+from .flat_controller import N_FOUND, OK, controller_outputs, controller_params, controller_step
 from .parameters import nonnegative
-from .unit import Unit, planar_motion, real_signal
+from .unit import StepError, Unit, planar_motion, real_signal
 
 SPEED = nonnegative(
     "speed",
@@ -44,7 +34,12 @@ SPEED = nonnegative(
 
 class DelayedFeedbackUnit(Unit):
     """Delayed-feedback controller ``u = K (S(t) - z(t))`` on both axes, where
-    ``S = (1 - R) z(t - tau) + R S(t - tau)`` (R = 0: Pyragas, ``S = z(t - tau)``)."""
+    ``S = (1 - R) z(t - tau) + R S(t - tau)`` (R = 0: Pyragas, ``S = z(t - tau)``).
+
+    Its step and outputs are the kernels the compiled master runs on a buffer
+    (:func:`.flat_controller.controller_step`, :func:`.flat_controller.controller_outputs`),
+    here on the history alone with room after it for one step's rows: one definition of
+    the history's bookkeeping for every master and for the FMU."""
 
     role = "controller"
     type_name = "delayed_feedback"
@@ -60,132 +55,46 @@ class DelayedFeedbackUnit(Unit):
     )
 
     def _check(self, params: dict[str, Any]) -> None:
-        self.tau0 = base_delay(params, params["speed"], self.name, f"{self.name}.speed")
+        base_delay(params, params["speed"], self.name, f"{self.name}.speed")
+        self._p = controller_params(params)
 
     def _initial_state(self) -> dict[str, Any]:
-        # rows (t, zx, zy, Sx, Sy); empty until the first step records a sample, whose
-        # time is "start": the constant initial function meets the signal there with a kink
+        # rows (t, zx, zy, Sx, Sy, kind); empty until the first step records a sample,
+        # whose time is "start": the constant initial function meets the signal there
+        # with a kink
         return {"history": np.zeros((0, ROW)), "start": math.nan}
 
-    def _signal(self) -> tuple[float, float]:
-        if self.params["feedback"] == "position":
-            return self.u["x"], self.u["y"]
-        return self.u["vx"], self.u["vy"]
+    def _bounds(self, hist: np.ndarray) -> np.ndarray:
+        return np.array([0.0, float(hist.shape[0]), self.state["start"]])
 
-    def _delay(self, t: float) -> float:
-        q = self.params
-        shape = MODULATION_SHAPES.index(q["modulation_shape"])
-        return delay_at(
-            t,
-            self.tau0,
-            q["modulation_amplitude"],
-            q["modulation_frequency"],
-            shape,
-            q["modulation_seed"],
-        )
-
-    def _filter(
-        self, samples: np.ndarray, t: float, tq: float | None = None, side: str = "right"
-    ) -> tuple[float, float]:
-        """The ETDAS filter S(t) from the samples before ``t`` (looked up at ``tq``,
-        default ``t - tau(t)``, on ``side`` of a jump there)."""
-        memory = self.params["memory"]
-        if samples.shape[0] == 0:  # constant initial function: S = z
-            return self._signal()
-        v = lookup(samples, t - self._delay(t) if tq is None else tq, side)
-        return etdas_blend(memory, v[0], v[2]), etdas_blend(memory, v[1], v[3])
-
-    def _filter_jumps(self, hist: np.ndarray, t: float) -> np.ndarray:
-        """Rows for the jumps and kinks of the filter between the last sample and
-        ``t``: two rows (left and right limit) at each time a recorded jump, or the
-        start, arrives (``s - tau(s)`` = its time) and at each jump of a sawtooth or
-        telegraph delay, so that no interpolation stencil spans them."""
-        if hist.shape[0] == 0:
-            return hist
-        q = self.params
-        shape = MODULATION_SHAPES.index(q["modulation_shape"])
-        eps, nu = q["modulation_amplitude"], q["modulation_frequency"]
-        t_last = hist[-1, 0]
-        ts = hist[:, 0]
-        # (arrival time s, delayed time on the left, on the right, lookup side on the left)
-        found: list[tuple[float, float, float, str]] = []
-        out = np.empty(4)
-        for j in np.unique(np.append(ts[1:][ts[1:] == ts[:-1]], self.state["start"])):
-            n = delayed_arrivals(j, self.tau0, eps, nu, shape, q["modulation_seed"], out)
-            found += [(s, j, j, "left") for s in out[:n] if t_last < s < t]
-        width = switch_interval(nu, shape) if eps > 0.0 else math.inf
-        m = piece_index(t_last, width) + 1.0 if width < math.inf else math.inf
-        while m * width < t:
-            s = m * width
-            before = (m - 2.0 * PIECE_TOL) * width  # a time in the previous piece
-            found.append((s, s - self._delay(before), s - self._delay(s), "right"))
-            m += 1.0
-        rows: list[list[float]] = []
-        zx, zy = self._signal()
-        current = [[t, zx, zy, np.nan, np.nan, SAMPLE]]  # z at t: the stencil's right end
-        for s, tq_left, tq_right, side in sorted(found):
-            known = np.vstack((hist, rows)) if rows else hist
-            z = lookup(np.vstack((known, current)), s)
-            left = self._filter(known, s, tq_left, side)
-            right = self._filter(known, s, tq_right, "right")
-            rows += [[s, z[0], z[1], *left, FILTER_PAIR], [s, z[0], z[1], *right, FILTER_PAIR]]
-        return np.array(rows).reshape(-1, ROW)
+    def _inputs(self) -> tuple[float, float, float, float]:
+        u = self.u
+        return u["x"], u["y"], u["vx"], u["vy"]
 
     def _advance(self, t: float, h: float) -> None:
         hist = self.state["history"]
-        zx, zy = self._signal()
-        if hist.shape[0] and hist[-1, 0] > t:
-            hist = hist[hist[:, 0] <= t]  # stepped again from an earlier time: forget the future
-        # Two samples at one time mark a jump: a zero-length step recorded the signal just
-        # before an impact reset it.  Both stay, and no interpolation stencil spans them;
-        # equal ones mark a kink (a position fed back, whose velocity the impact reset).
-        # A third sample at that time (events at one time) replaces the second.
-        if (
-            hist.shape[0] > 1
-            and hist[-2, 0] == t
-            and hist[-1, 0] == t
-            and hist[-1, 1] == zx
-            and hist[-1, 2] == zy
-        ):
-            hist = hist[:-1]
-        if math.isnan(self.state["start"]):
-            self.state["start"] = t
-        if self.params["memory"] == 0.0:
-            sx, sy = zx, zy  # not used: the filter is z(t - tau) itself
-        else:
-            hist = np.vstack((hist, self._filter_jumps(hist[hist[:, 0] < t], t)))
-            sx, sy = self._filter(hist[hist[:, 0] < t], t)
-        # the oldest time still needed: the next step's outputs look back to t + h - tau,
-        # its filter's jumps arrive from jumps after t - tau (the longest delay);
-        # keep three samples of the signal before it, for the stencil, so that no
-        # lookup from it on changes (first_kept)
-        keep = t - self.tau0 - self.params["modulation_amplitude"]
-        first = int(first_kept(np.ascontiguousarray(hist, dtype=np.float64), keep))
-        self.state["history"] = np.vstack((hist[first:], [[t, zx, zy, sx, sy, SAMPLE]]))
-
-    def _delayed(self, tq: float) -> tuple[float, float]:
-        """The fed-back delayed signal: z(tq) (Pyragas) or (1 - R) z(tq) + R S(tq)."""
-        hist = self.state["history"]
-        before = hist[hist[:, 0] < self.time]
-        zx, zy = self._signal()
-        sx, sy = (zx, zy) if self.params["memory"] == 0.0 else self._filter(before, self.time)
-        v = lookup(np.vstack((before, [[self.time, zx, zy, sx, sy, SAMPLE]])), tq)
-        memory = self.params["memory"]
-        return etdas_blend(memory, v[0], v[2]), etdas_blend(memory, v[1], v[3])
+        n = hist.shape[0]
+        # a step writes the filter's jumps and kinks it meets (two rows each, at most
+        # N_FOUND of them) and its sample after the history
+        buf = np.zeros((n + 2 * N_FOUND + 1, ROW))
+        buf[:n] = hist
+        cs = self._bounds(hist)
+        scratch = np.empty((buf.shape[0] + 1, ROW))
+        if controller_step(self._p, cs, buf, scratch, *self._inputs(), t) != OK:
+            raise StepError(
+                f"{self.name}: more than {N_FOUND} jumps of the delayed signal arrive in the "
+                f"step from t = {t}; take shorter steps"
+            )
+        self.state["history"] = buf[int(cs[0]) : int(cs[1])].copy()
+        self.state["start"] = float(cs[2])
 
     def _outputs(self) -> dict[str, float]:
-        t = self.time
-        tau = self._delay(t)
-        if t < self.params["t_on"]:
-            return {"ux": 0.0, "uy": 0.0, "current_delay": tau}
-        zx, zy = self._signal()
-        dx, dy = self._delayed(t - tau)
-        gain = self.params["gain"]
-        return {
-            "ux": feedback_force(gain, zx, dx),
-            "uy": feedback_force(gain, zy, dy),
-            "current_delay": tau,
-        }
+        hist = self.state["history"]
+        out = np.empty(3)
+        scratch = np.empty((hist.shape[0] + 1, ROW))
+        controller_outputs(self._p, self._bounds(hist), hist, scratch, *self._inputs(),
+                           self.time, out)  # fmt: skip
+        return {"ux": float(out[0]), "uy": float(out[1]), "current_delay": float(out[2])}
 
 
 DELAYED_FEEDBACK = UnitType(

@@ -1,17 +1,20 @@
 """The delayed-feedback controller's history: interpolation of its samples at a past time.
 
-The controller (:mod:`.controller_unit`, and its compiled form on a buffer,
-:mod:`.flat_controller`) keeps the fed-back signal as rows ``(t, zx, zy, Sx, Sy)``
-taken at the communication points.  :func:`lookup` evaluates the signal and the ETDAS
-filter at a time ``tq`` by cubic Lagrange interpolation through the four samples around
-it, each within its own continuous pieces (two samples at one time mark a jump).
+The controller's kernels (:mod:`.flat_controller`) keep the fed-back signal as rows
+``(t, zx, zy, Sx, Sy, kind)`` taken at the communication points.  :func:`_lookup`
+evaluates the signal and the ETDAS filter at a time ``tq`` by cubic Lagrange
+interpolation through the four samples around it, each within its own continuous pieces
+(two samples at one time mark a jump, or a kink when they are equal: an event that left
+a fed-back position continuous and reset its slope; at that time ``left`` takes the left
+limit; a jump or kink of the filter alone, a pair of kind ``FILTER_PAIR``, leaves z
+continuous and splits no z stencil); the first sample before the first time.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from .jit import USE_NUMBA, njit
+from .jit import njit
 
 # a history row: (t, zx, zy, Sx, Sy, kind); kind: a sample of the signal (a step's, or
 # its left limit at an event), or one of the pair that marks a jump or kink of S alone
@@ -113,62 +116,3 @@ def _lookup(samples, tq, left, out):  # pragma: no cover - compiled
     for r in range(n):
         rows[r] = r
     _interpolate_rows(samples, rows, n, tq, left, 3, out, 2)
-
-
-def lagrange_cubic(ts: np.ndarray, zs: np.ndarray, tq: float) -> np.ndarray:
-    """Interpolate rows ``zs`` given at times ``ts`` (up to 4) at ``tq``."""
-    out = np.zeros(zs.shape[1])
-    for i in range(ts.size):
-        w = 1.0
-        for j in range(ts.size):
-            if j != i:
-                w *= (tq - ts[j]) / (ts[i] - ts[j])
-        out += w * zs[i]
-    return out
-
-
-def _interpolate_arrays(samples: np.ndarray, tq: float, side: str) -> np.ndarray:
-    """:func:`_interpolate_rows` of every row, by array operations."""
-    ts = samples[:, 0]
-    if tq < ts[0] or (tq == ts[0] and (side == "left" or ts.size == 1 or ts[1] != ts[0])):
-        return samples[0, 1:]
-    jumps = np.flatnonzero(ts[1:] == ts[:-1]) + 1
-    k = int(np.searchsorted(jumps, int(np.searchsorted(ts, tq, side=side)), side="right"))
-    start = jumps[k - 1] if k > 0 else 0
-    stop = jumps[k] if k < jumps.size else ts.size
-    piece = samples[start:stop]
-    i = int(np.searchsorted(piece[:, 0], tq))
-    lo = max(min(i - 2, piece.shape[0] - 4), 0)
-    window = piece[lo : lo + 4]
-    return lagrange_cubic(window[:, 0], window[:, 1:], tq)
-
-
-def lookup_arrays(samples: np.ndarray, tq: float, side: str = "right") -> np.ndarray:
-    """:func:`lookup` by array operations: a dozen numpy calls whatever the history's
-    length, where the compiled loops would be hundreds of Python steps (an FMU's plain
-    Python).  The two agree bit for bit (``tests/test_units.py``)."""
-    ts = samples[:, 0]
-    same_z = np.zeros(ts.size, dtype=bool)
-    same_z[1:] = (ts[1:] == ts[:-1]) & np.all(samples[1:, 1:3] == samples[:-1, 1:3], axis=1)
-    if samples.shape[1] > 5:  # the second sample of an event's pair splits z (its kink)
-        same_z &= samples[:, 5] == FILTER_PAIR
-    z = _interpolate_arrays(samples[~same_z][:, :3], tq, side)
-    return np.concatenate((z, _interpolate_arrays(samples[:, [0, 3, 4]], tq, side)))
-
-
-def lookup(samples: np.ndarray, tq: float, side: str = "right") -> np.ndarray:
-    """``(zx, zy, Sx, Sy)`` at ``tq`` from rows ``(t, zx, zy, Sx, Sy)``: the signal and
-    the filter each interpolated within its own continuous pieces (cubic Lagrange
-    through the four samples around ``tq``; two samples at one time mark a jump, or a
-    kink when they are equal (an event that left a fed-back position continuous and
-    reset its slope), and at that time ``side="left"`` takes the left limit; a jump or
-    kink of the filter alone (a pair of kind ``FILTER_PAIR``) leaves z continuous and
-    splits no z stencil); the first sample before the first time.  Without the kind
-    column, a pair that agrees in z is taken for one of S alone.  Compiled where numba
-    runs (the history holds hundreds of rows and the output is looked up at every
-    macro step), by array operations in an FMU's plain Python (:func:`lookup_arrays`)."""
-    if not USE_NUMBA:
-        return lookup_arrays(samples, tq, side)
-    out = np.empty(4)
-    _lookup(np.ascontiguousarray(samples, dtype=np.float64), float(tq), side == "left", out)
-    return out

@@ -1,9 +1,7 @@
 """The delayed-feedback controller's step and outputs as compiled kernels on a buffer.
 
-:class:`.controller_unit.DelayedFeedbackUnit` keeps its history as a numpy array that
-each step replaces (``np.vstack``); a compiled master cannot.  Here the same history
-lives in rows ``a .. b - 1`` of a fixed buffer ``buf`` (the unit's rows,
-:mod:`.delay_history`), with ``cs = [a, b, start]``:
+The fed-back signal's history (rows ``(t, zx, zy, Sx, Sy, kind)``, :mod:`.delay_history`)
+lives in rows ``a .. b - 1`` of a fixed buffer ``buf``, with ``cs = [a, b, start]``:
 
 * a step only writes at ``b`` and after (it may drop its last row, the second of two
   equal ones at its time, and write it again identically), and the
@@ -13,10 +11,11 @@ lives in rows ``a .. b - 1`` of a fixed buffer ``buf`` (the unit's rows,
   rollback to older bounds can follow: a master keeps a copy of the history in its
   checkpoint).
 
-:func:`controller_step` is ``DelayedFeedbackUnit._advance`` and :func:`controller_outputs`
-its ``_outputs``, operation for operation (the same lookups on the same rows in the same
-order), so the two agree bit for bit (``tests/test_flat_controller.py``).  The
-parameter row is :func:`controller_params`; :func:`row_step` and :func:`row_outputs`
+These kernels are the controller's one definition: the compiled master runs them on its
+buffers, :class:`.controller_unit.DelayedFeedbackUnit` (the Python master's and the
+FMU's unit) on its history with room for one step after it.  They are held, bit for
+bit, to the same history kept by numpy array operations (``tests/test_flat_controller.py``).
+The parameter row is :func:`controller_params`; :func:`row_step` and :func:`row_outputs`
 are the compiled master's unit step and outputs on the controller's row.
 """
 
@@ -81,7 +80,8 @@ def _gather(buf, a, m, b, r, scratch):  # pragma: no cover - compiled
 
 @njit
 def _filter(p, scratch, k, tq, left, zx, zy, out):  # pragma: no cover - compiled
-    """``DelayedFeedbackUnit._filter`` of the ``k`` rows in ``scratch`` at ``tq``."""
+    """The ETDAS filter S at ``tq`` from the ``k`` rows in ``scratch`` (on the left of a
+    jump there with ``left``); the signal itself before the first row."""
     if k == 0:
         return zx, zy
     _lookup(scratch[:k], tq, left, out)
@@ -131,8 +131,11 @@ def _cut(buf, a, m, tq):  # pragma: no cover - compiled
 
 @njit
 def _filter_jumps(p, buf, a, m, b, start, t, zx, zy, scratch):  # pragma: no cover
-    """``DelayedFeedbackUnit._filter_jumps`` of rows ``a .. m - 1``: its rows written
-    from ``b`` on; returns their number, -1 when they do not fit."""
+    """Rows for the jumps and kinks of the filter between row ``m - 1`` and ``t``, written
+    from ``b`` on: two rows (left and right limit) at each time a recorded jump, or the
+    start, arrives (``s - tau(s)`` = its time) and at each jump of a sawtooth or
+    telegraph delay, so that no interpolation stencil spans them; returns their number,
+    -1 when they do not fit."""
     if m == a:
         return 0
     tau0, eps, nu = p[C_TAU0], p[C_EPS], p[C_NU]
@@ -213,9 +216,17 @@ def _signal(p, x, y, vx, vy):  # pragma: no cover - compiled
 
 @njit
 def controller_step(p, cs, buf, scratch, x, y, vx, vy, t):  # pragma: no cover - compiled
-    """``DelayedFeedbackUnit._advance`` at time ``t`` (s) with the disc state
-    ``x, y, vx, vy`` as inputs, on the history ``buf`` and ``cs``; returns :data:`OK`,
-    or :data:`FULL` with ``cs`` unchanged when the buffer is too small."""
+    """The controller's step at time ``t`` (s) with the disc state ``x, y, vx, vy`` as
+    inputs, on the history ``buf`` and ``cs``: the sample at ``t`` (signal and filter)
+    recorded, the rows no later lookup needs dropped (:func:`.delay_history.first_kept`);
+    returns :data:`OK`, or :data:`FULL` with ``cs`` unchanged when the buffer is too
+    small.
+
+    Stepped again from an earlier time, it forgets the rows after it.  Two samples at one
+    time mark a jump (a zero-length step recorded the signal just before an impact reset
+    it): both stay, and no interpolation stencil spans them; equal ones mark a kink (a
+    position fed back, whose velocity the impact reset); a third sample at that time (events
+    at one time) replaces the second."""
     a, b, start = int(cs[0]), int(cs[1]), cs[2]
     zx, zy = _signal(p, x, y, vx, vy)
     while b > a and buf[b - 1, 0] > t:  # stepped again from an earlier time
@@ -227,7 +238,7 @@ def controller_step(p, cs, buf, scratch, x, y, vx, vy, t):  # pragma: no cover -
         and buf[b - 1, 1] == zx
         and buf[b - 1, 2] == zy
     ):
-        b -= 1  # a third sample at one time replaces the second (see the unit's _advance)
+        b -= 1  # a third sample at one time replaces the second
     if math.isnan(start):
         start = t
     if p[C_MEMORY] == 0.0:
@@ -257,8 +268,8 @@ def controller_step(p, cs, buf, scratch, x, y, vx, vy, t):  # pragma: no cover -
 
 @njit
 def controller_outputs(p, cs, buf, scratch, x, y, vx, vy, t, out):  # pragma: no cover
-    """``DelayedFeedbackUnit._outputs`` at time ``t`` into ``out``: ux, uy (N) and the
-    current delay (s)."""
+    """The controller's outputs at time ``t`` into ``out``: ux, uy (N) and the current
+    delay (s); the force ``K (S(t) - z(t))``, zero before ``t_on``."""
     tau = _delay(p, t)
     out[2] = tau
     if t < p[C_T_ON]:

@@ -1,7 +1,9 @@
 """The controller's compiled kernels on a buffer (components/flat_controller.py) against the
-controller unit they restate: the same history and the same outputs, bit for bit, through
-jumps of the fed-back signal with their left limits, for every kind of delay and filter;
-and a rollback by restoring the buffer's bounds."""
+same history kept by numpy array operations (tests/controller_arrays.py, a second method):
+the same history and the same outputs, bit for bit, through jumps of the fed-back signal
+with their left limits, for every kind of delay and filter; the controller unit, which
+runs the kernels on its history, keeps it too; and a rollback by restoring the buffer's
+bounds."""
 
 from __future__ import annotations
 
@@ -19,6 +21,8 @@ from rubcosim.components.flat_controller import (
     make_room,
 )
 from rubcosim.components.units import make_unit
+
+from controller_arrays import ArrayController
 
 TAU = 2.1e-3
 CASES = {
@@ -74,21 +78,26 @@ class Kernel:
         return self.buf[a:b]
 
 
-def drive(case: dict, steps: int = 400, h: float = 3.7e-5):
-    """The unit and the kernels side by side; yields both after every step."""
+def drive(case: dict, steps: int = 400, h: float = 3.7e-5, units: list | None = None):
+    """The array method and the kernels side by side; yields both after every step (and
+    steps the ``units`` given alongside)."""
     params = {"gain": 1e5, "delay": TAU, "speed": 0.0, **case}
-    unit = make_unit("controller", "delayed_feedback", **params)
+    unit = ArrayController(name="controller", **params)
     kernel = Kernel(unit.params)
+    others = units if units is not None else []
     jumps, t = 0, 0.0
     for k in range(steps):
         if k % 37 == 36:  # an impact at t: the left limit first, then the jump
-            unit.do_step(t, 0.0)
+            for u in (unit, *others):
+                u.do_step(t, 0.0)
             assert kernel.step(t) == OK
             jumps += 1
         u = motion(t, jumps)
-        unit.set_inputs(u)
+        for v in (unit, *others):
+            v.set_inputs(u)
         kernel.u = u
-        unit.do_step(t, h)
+        for v in (unit, *others):
+            v.do_step(t, h)
         assert kernel.step(t) == OK
         t += h
         yield unit, kernel, t
@@ -102,6 +111,19 @@ def test_kernels_keep_the_units_history_and_give_its_outputs_bit_for_bit(name):
         want = unit.get_outputs()
         got = kernel.outputs(t)
         assert (got[0], got[1], got[2]) == (want["ux"], want["uy"], want["current_delay"])
+
+
+@pytest.mark.parametrize("name", ["etdas, telegraph delay", "switched on late"])
+def test_the_controller_unit_keeps_the_same_history_and_outputs(name):
+    # the unit runs the kernels on its own history (room for one step after it): its
+    # rows and outputs are those of the kernels on one long buffer
+    params = {"gain": 1e5, "delay": TAU, "speed": 0.0, **CASES[name]}
+    unit = make_unit("controller", "delayed_feedback", **params)
+    for _, kernel, t in drive(CASES[name], units=[unit]):
+        np.testing.assert_array_equal(kernel.history(), unit.state["history"])
+        want = kernel.outputs(t)
+        got = unit.get_outputs()
+        assert (got["ux"], got["uy"], got["current_delay"]) == (want[0], want[1], want[2])
 
 
 def test_restoring_the_bounds_rolls_a_step_back_exactly():

@@ -12,14 +12,7 @@ from rubcosim.components import jit, unit_odes
 from rubcosim.components.bearing import oilfilm_force, oilfilm_sigma
 from rubcosim.components.catalog import UNIT_TYPES
 from rubcosim.components.controller import base_delay
-from rubcosim.components.delay_history import (
-    FILTER_PAIR,
-    SAMPLE,
-    first_kept,
-    lagrange_cubic,
-    lookup,
-    lookup_arrays,
-)
+from rubcosim.components.delay_history import FILTER_PAIR, SAMPLE, first_kept
 from rubcosim.components.parameters import ParameterError
 from rubcosim.components.rotor import free_whirl, jeffcott_force
 from rubcosim.components.stator import penalty_contact_force, rigid_impact
@@ -29,6 +22,8 @@ from rubcosim.components.units import UNIT_CLASSES, make_unit, unit_class
 from rubcosim.fmus.build import MODEL_IDENTIFIERS
 from rubcosim.reference import build_system, simulate
 from rubcosim.reference import make_unit as make_reference_unit
+
+from controller_arrays import lagrange_cubic, lookup, lookup_arrays
 
 W = 379.473319
 ROTOR = dict(mass=10.0, damping=316.227766, stiffness=1e6, eccentricity=5e-5, speed=W)
