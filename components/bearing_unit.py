@@ -11,6 +11,7 @@ from .bearing import (
     linear_bearing_force,
     oilfilm_force,
 )
+from .bearing_law import BearingLaw
 from .declaration import Derived, FmuIdentity, Need, UnitType, Wire
 from .flat_units import RowOutputs
 from .parameters import positive
@@ -74,6 +75,9 @@ OILFILM_BEARING = UnitType(
     wiring=JOURNAL_WIRING,
     length_scale=lambda q: q["clearance"],
     kernels=(oilfilm_force,),
+    bearing=BearingLaw(
+        oilfilm_force, ("speed", "clearance", "sigma"), wall="clearance", model="the oil-film model"
+    ),
 )
 
 LINEAR_BEARING = UnitType(
@@ -82,4 +86,5 @@ LINEAR_BEARING = UnitType(
     FmuIdentity("RubcosimLinearBearing"),
     wiring=JOURNAL_WIRING,
     kernels=(linear_bearing_force,),
+    bearing=BearingLaw(linear_bearing_force, ("stiffness", "damping")),
 )

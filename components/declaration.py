@@ -20,6 +20,7 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Any
 
+from .bearing_law import BearingLaw
 from .contact_law import ContactLaw
 from .hybrid import HybridKernels
 from .parameters import Param
@@ -135,7 +136,8 @@ class UnitType:
     type that is a whole nonsmooth model (:mod:`.hybrid`); the reference compiles
     them, the unit class steps them.  ``contact``: a stator type's contact law
     (:mod:`.contact_law`), which fixes its event protocol in every engine and, for a
-    penalty contact, its normal force.
+    penalty contact, its normal force.  ``bearing``: a bearing type's force law on
+    the journal (:mod:`.bearing_law`), which every engine calls.
     """
 
     unit_class: type[Unit]
@@ -152,6 +154,7 @@ class UnitType:
     clock: Callable[[Mapping[str, Any]], tuple[float, float]] | None = None
     hybrid: HybridKernels | None = None
     contact: ContactLaw | None = None
+    bearing: BearingLaw | None = None
 
     @property
     def role(self) -> str:
@@ -231,11 +234,11 @@ class UnitType:
                 fail(f"the unit's outputs must start with the hybrid kernels' {expected}")
             if len(self.states) != len(self.hybrid.initial(self._example_params())[0]):
                 fail("the hybrid kernels' state does not match the declared states")
-        if self.contact is not None:
-            known = {*class_params, *(n.param for n in self.needs), *(d.name for d in self.derived)}
-            for name in self.contact.args:
+        known = {*class_params, *(n.param for n in self.needs), *(d.name for d in self.derived)}
+        for what, law in (("contact law", self.contact), ("bearing law", self.bearing)):
+            for name in law.args if law is not None else ():
                 if name not in known:
-                    fail(f"contact law: {name!r} is not a parameter or derived quantity")
+                    fail(f"{what}: {name!r} is not a parameter or derived quantity")
         if not self.fmu.identifier.isidentifier():
             fail(f"FMU identifier {self.fmu.identifier!r} is not an identifier")
 

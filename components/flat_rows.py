@@ -15,10 +15,11 @@ A row (:mod:`.flat_units`) holds:
 from __future__ import annotations
 
 # flat unit kinds (K_PENALTY: a massless stator with any penalty law, K_CASING one on a
-# casing, :mod:`.contact_law`; K_HYBRID: every hybrid unit type, :mod:`.flat_hybrid`;
+# casing, :mod:`.contact_law`; K_BEARING: a bearing with any force law,
+# :mod:`.bearing_law`; K_HYBRID: every hybrid unit type, :mod:`.flat_hybrid`;
 # K_CONTROLLER: the delayed-feedback controller, its history in a buffer,
 # :mod:`.flat_controller`)
-K_JEFFCOTT, K_TWO_MASS, K_RIGID, K_PENALTY, K_CASING, K_OILFILM, K_LINEAR, K_HYBRID = range(8)
+K_JEFFCOTT, K_TWO_MASS, K_RIGID, K_PENALTY, K_CASING, K_BEARING, K_HYBRID = range(7)
 K_CONTROLLER = 8
 
 Y, H, IV, T, U = 0, 8, 9, 10, 11

@@ -17,30 +17,28 @@ the two masters to 1e-12 (they are bit-identical).  The hybrid unit types (the
 impact oscillators) step on rows through :mod:`.flat_hybrid`.  A unit type without a
 row form (FMUs) runs on the Python master; the controller's row holds the bounds of
 its history, which lives in a buffer of the master's (:mod:`.flat_controller`).
+Which row form a unit type has, and its parameter row: :mod:`.flat_params`.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
 
-from .bearing import film_scale, linear_bearing_force, oilfilm_force
-from .contact_law import law_index
-from .flat_controller import controller_params
-from .flat_hybrid import hybrid_flat_type, hybrid_params, hybrid_step
+from . import bearing_law
+from .flat_hybrid import hybrid_step
+from .flat_params import flat_params, flat_type
 from .flat_rows import (  # noqa: F401 - the row layout, kinds and statuses, re-exported
     HY_IMPACTS,
     HY_MODE,
     IV,
+    K_BEARING,
     K_CASING,
     K_CONTROLLER,
     K_HYBRID,
     K_JEFFCOTT,
-    K_LINEAR,
-    K_OILFILM,
     K_PENALTY,
     K_RIGID,
     K_TWO_MASS,
@@ -61,7 +59,6 @@ from .flat_rows import (  # noqa: F401 - the row layout, kinds and statuses, re-
 from .jit import njit
 from .kernels import all_finite
 from .linear_propagation import exact_step
-from .registered import declaration
 from .rotor import jeffcott_force, two_mass_disc_force
 from .stator import (
     MODE_FREE,
@@ -79,18 +76,10 @@ from .stator import (
 )
 from .stepping import OK, advance
 from .unit_odes import (
-    CASING,
-    JEFFCOTT,
-    JEFFCOTT_P,
-    LAW,
-    LAW_AT,
-    PENALTY_P,
-    TWO_MASS,
-    TWO_MASS_P,
     row_contact_force,
 )
 
-OUT_NO_FILM = 4  # a journal outside the oil film: no bearing force
+OUT_NO_FILM = 4  # a journal at or past its bearing law's wall: no bearing force
 OUT_BAD_MODE = 5  # a contact mode that is not 0, 1, 2 or 3
 OUT_NO_MASS = 6  # sustained contact without a disc mass
 OUT_NO_KIND = 8  # a row of no kind this module knows
@@ -101,105 +90,11 @@ REASONS = {
     STEP_NOT_FINITE: "the state is not finite after the step",
     STEP_NO_ROOM: "its history outgrew its buffer",
     OUT_NO_FILM: "the journal touches the bearing wall (eccentricity ratio {ratio:.6g} >= 1); "
-    "the oil-film model has no force there",
+    "{model} has no force there",
     OUT_BAD_MODE: "{name}.contact_mode = {mode} is not 0, 1, 2 or 3",
     OUT_NO_MASS: "{name}.disc_mass must be > 0 for sustained contact",
     OUT_NO_KIND: "{name} has no row form",
 }
-
-RIGID_P = (
-    "x_offset",
-    "y_offset",
-    "restitution",
-    "friction",
-    "disc_radius",
-    "speed",
-    "clearance",
-    "disc_mass",
-    "constraint_rate",
-)
-OILFILM_P = ("speed", "clearance", "sigma")
-LINEAR_P = ("stiffness", "damping")
-
-# (role, type name) -> (flat kind, ODE kind of unit_odes or -1, parameter names, ODE inputs)
-FLAT_TYPES: dict[tuple[str, str], tuple[int, int, tuple[str, ...], tuple[str, ...]]] = {
-    ("rotor", "jeffcott"): (K_JEFFCOTT, JEFFCOTT, JEFFCOTT_P, ("fx", "fy")),
-    ("rotor", "two_mass"): (
-        K_TWO_MASS,
-        TWO_MASS,
-        TWO_MASS_P,
-        ("fx", "fy", "journal_fx", "journal_fy"),
-    ),
-    ("stator", "rigid"): (K_RIGID, -1, RIGID_P, ()),
-    ("bearing", "oilfilm"): (K_OILFILM, -1, OILFILM_P, ()),
-    ("bearing", "linear"): (K_LINEAR, -1, LINEAR_P, ()),
-    ("controller", "delayed_feedback"): (K_CONTROLLER, -1, (), ()),
-}
-
-
-def _penalty_type(role: str, type_name: str) -> Any:
-    """The declaration of a stator type with a penalty law (:mod:`.contact_law`), or None."""
-    t = declaration(role, type_name)
-    return t if t is not None and t.contact is not None and t.contact.kind == "penalty" else None
-
-
-def flat_type(role: str, type_name: str) -> tuple[int, int, tuple, tuple] | None:
-    """The :data:`FLAT_TYPES` entry of a unit type, the penalty stators' (from their
-    declaration: on a casing with states, massless without) and the hybrid types'
-    (:func:`.flat_hybrid.hybrid_flat_type`) included; None when it has no row form."""
-    entry = FLAT_TYPES.get((role, type_name))
-    if entry is not None:
-        return entry
-    t = _penalty_type(role, type_name)
-    if t is not None:
-        if t.states:
-            # its ODE reads the disc state (unit_odes.CASING)
-            return K_CASING, CASING, PENALTY_P, ("x", "y", "vx", "vy")
-        return K_PENALTY, -1, PENALTY_P, ()
-    return hybrid_flat_type(role, type_name)
-
-
-def penalty_params(t: Any, params: Mapping[str, Any]) -> np.ndarray:
-    """The parameter row of a penalty stator of declaration ``t``: :data:`PENALTY_P` (a
-    quantity the type does not have is 0), its law's index at ``LAW``, then the
-    quantities its law takes (its parameters and derived quantities) from ``LAW_AT``."""
-    q = dict(params)
-    for d in t.derived:
-        q[d.name] = d.value(q)
-    args = t.contact.args
-    if LAW_AT + len(args) > MAX_PARAMS:
-        raise ValueError(f"{t.role}.{t.type_name}: its contact law takes too many quantities")
-    row = np.zeros(MAX_PARAMS)
-    for i, name in enumerate(PENALTY_P):
-        row[i] = float(q.get(name, 0.0))
-    row[LAW] = law_index(t.contact)
-    for j, name in enumerate(args):
-        row[LAW_AT + j] = float(q[name])
-    return row
-
-
-def flat_params(role: str, type_name: str, params: Mapping[str, Any]) -> np.ndarray:
-    """The parameter row of a unit (:data:`FLAT_TYPES` order, zero-padded): the unit's
-    parameters plus the quantities its class derives from them when it steps (the
-    film's force scale); a penalty stator's (:func:`penalty_params`); a hybrid unit's
-    kernels' array (:func:`.flat_hybrid.hybrid_params`)."""
-    t = _penalty_type(role, type_name)
-    if t is not None:
-        return penalty_params(t, params)
-    if (role, type_name) not in FLAT_TYPES:
-        return hybrid_params(role, type_name, params)
-    row = np.zeros(MAX_PARAMS)
-    if type_name == "delayed_feedback":
-        p = controller_params(params)
-        row[: p.size] = p
-        return row
-    names = FLAT_TYPES[(role, type_name)][2]
-    q = dict(params)
-    if type_name == "oilfilm":
-        q["sigma"] = film_scale(q)
-    for i, name in enumerate(names):
-        row[i] = float(q.get(name, 0.0))
-    return row
 
 
 @njit
@@ -333,14 +228,11 @@ def outputs(kind, p, st, out):
         for i in range(4):
             out[6 + i] = st[i]
         return STEP_OK
-    if kind == K_OILFILM:
-        fx, fy = oilfilm_force(st[U], st[U + 3], st[U + 6], st[U + 9], p[0], p[1], p[2])
+    if kind == K_BEARING:
+        law = int(p[0])
+        fx, fy = bearing_law.bearing_law_force(law, st[U], st[U + 3], st[U + 6], st[U + 9], p, 1)
         if not (math.isfinite(fx) and math.isfinite(fy)):
             return OUT_NO_FILM
-        out[0], out[1] = fx, fy
-        return STEP_OK
-    if kind == K_LINEAR:
-        fx, fy = linear_bearing_force(st[U], st[U + 3], st[U + 6], st[U + 9], p[0], p[1])
         out[0], out[1] = fx, fy
         return STEP_OK
     return OUT_NO_KIND
@@ -350,9 +242,12 @@ def failure_reason(status: int, row: np.ndarray, p: np.ndarray, name: str) -> st
     """What a nonzero status of :func:`do_step` or :func:`outputs` on the row (and
     parameter row ``p``) of unit ``name`` means."""
     mode = int(row[U + 18]) if status == OUT_BAD_MODE else 0
-    # the journal's distance from the centre over the clearance (OILFILM_P: p[1])
-    ratio = math.hypot(row[U], row[U + 3]) / p[1] if status == OUT_NO_FILM else 0.0
-    return REASONS[status].format(name=name, mode=mode, ratio=ratio)
+    ratio, model = 0.0, ""
+    if status == OUT_NO_FILM:  # the journal's distance from the centre over the law's wall
+        law = int(p[0])
+        ratio = bearing_law.wall_ratio(law, row[U], row[U + 3], p[1:])
+        model = bearing_law.bearing_laws()[law].model
+    return REASONS[status].format(name=name, mode=mode, ratio=ratio, model=model)
 
 
 def unit_row(unit: Any) -> np.ndarray:

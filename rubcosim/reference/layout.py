@@ -15,8 +15,9 @@ declarations (:mod:`rubcosim.components.registry`), in registry order:
   2, ... in registry order), the index of each choice parameter's value
   (``IP_CONTROLLER_FEEDBACK`` holds ``CONTROLLER_FEEDBACK_POSITION``, ...) and
   the state offset of each declared state (``IP_ROTOR_JOURNAL_X``; -1 if absent).
-* a role whose types have penalty contact laws: the law's index (``IP_STATOR_LAW``,
-  -1 for none) and the quantities it takes, side by side from ``P_STATOR_LAW_0``.
+* a role whose types declare a law the engines call (a stator's penalty contact law,
+  a bearing's force law): the law's index (``IP_STATOR_LAW``, ``IP_BEARING_LAW``; -1
+  for none) and the quantities it takes, side by side from ``P_STATOR_LAW_0``.
 
 Every slot is a module-level integer (numba compiles them as constants into
 the kernels of :mod:`.system`, where this module is re-exported); adding a
@@ -36,7 +37,7 @@ from typing import Any
 
 import numpy as np
 
-from rubcosim.components.contact_law import law_index
+from rubcosim.components import bearing_law, contact_law
 from rubcosim.components.declaration import UnitType
 
 # Event kinds and the number of event slots are shared with the hybrid unit types.
@@ -84,6 +85,17 @@ def packed_names(t: UnitType) -> tuple[str, ...]:
     return tuple(dict.fromkeys((*own, *(n.param for n in t.needs), *(d.name for d in t.derived))))
 
 
+def declared_law(t: UnitType) -> tuple[Any, int] | None:
+    """The law of a unit of type ``t`` that the engines call through a generated dispatch,
+    with its index there: a penalty contact law (:mod:`rubcosim.components.contact_law`)
+    or a bearing law (:mod:`rubcosim.components.bearing_law`); None for neither."""
+    if t.contact is not None and t.contact.kind == "penalty":
+        return t.contact, contact_law.law_index(t.contact)
+    if t.bearing is not None:
+        return t.bearing, bearing_law.law_index(t.bearing)
+    return None
+
+
 def choice_params(t: UnitType) -> dict[str, tuple[str, ...]]:
     """Choice parameter -> its choices, for a unit of type ``t`` (packed into ``ip``)."""
     return {p.name: p.choices for p in t.params if p.kind == "choice"}
@@ -126,9 +138,10 @@ class Layout:
             p[self.p[(role, name)]] = values[name]
         for name, choices in choice_params(t).items():
             ip[self.ip_choice[(role, name)]] = choices.index(values[name])
-        if t.contact is not None and t.contact.kind == "penalty":
-            ip[self.ip_law[role]] = law_index(t.contact)
-            for j, name in enumerate(t.contact.args):
+        law = declared_law(t)
+        if law is not None:
+            ip[self.ip_law[role]] = law[1]
+            for j, name in enumerate(law[0].args):
                 p[self.p_law[role] + j] = values[name]
 
 
@@ -167,9 +180,10 @@ def rotor_family_layout(types: Iterable[UnitType]) -> Layout:
                         layout._constant(key, index)  # (a second type with the choice: skip)
             for s in t.states:
                 n_ip = add(layout.ip_state, (role, s.name), f"IP_{role}_{s.name}", n_ip)
-        # a penalty law's index, and the quantities it takes side by side (the engines
-        # call every law alike, :func:`rubcosim.components.contact_law.penalty_law_normal`)
-        laws = [t.contact for t in kinds if t.contact is not None and t.contact.kind == "penalty"]
+        # a declared law's index, and the quantities it takes side by side (the engines
+        # call every law of a role alike: contact_law.penalty_law_normal,
+        # bearing_law.bearing_law_force)
+        laws = [law[0] for t in kinds if (law := declared_law(t)) is not None]
         if laws:
             n_ip = add(layout.ip_law, role, f"IP_{role}_LAW", n_ip)
             layout.p_law[role] = n_p

@@ -47,8 +47,8 @@ import math
 import numba as nb
 import numpy as np
 
-from rubcosim.components import contact_law
-from rubcosim.components.bearing import linear_bearing_force, oilfilm_force
+from rubcosim.components import bearing_law, contact_law
+from rubcosim.components.bearing import linear_bearing_force
 from rubcosim.components.controller import delay_at, feedback_force
 from rubcosim.components.hybrid_dispatch import (
     hybrid_apply,
@@ -217,17 +217,14 @@ def contact_force(fx, fy, y, mode, p, ip):
 
 @nb.njit(cache=True, inline="always")
 def bearing_force(y: np.ndarray, p: np.ndarray, ip: np.ndarray):
-    j = ip[IP_ROTOR_JOURNAL_X]
-    if j < 0 or ip[IP_BEARING] == BEARING_NONE:
+    """The bearing's force on the journal, N: its type's declared law
+    (components.bearing_law), its quantities side by side."""
+    j, law = ip[IP_ROTOR_JOURNAL_X], ip[IP_BEARING_LAW]
+    if j < 0 or law < 0:
         return 0.0, 0.0
-    if ip[IP_BEARING] == BEARING_LINEAR:
-        return linear_bearing_force(
-            y[j], y[j + 1], y[j + 2], y[j + 3], p[P_BEARING_STIFFNESS], p[P_BEARING_DAMPING]
-        )
-    return oilfilm_force(
-        y[j], y[j + 1], y[j + 2], y[j + 3],
-        p[P_ROTOR_SPEED], p[P_BEARING_CLEARANCE], p[P_BEARING_SIGMA],
-    )  # fmt: skip
+    return bearing_law.bearing_law_force(
+        law, y[j], y[j + 1], y[j + 2], y[j + 3], p, P_BEARING_LAW_0
+    )
 
 
 @nb.njit(cache=True, inline="always")
