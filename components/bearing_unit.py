@@ -25,7 +25,10 @@ FORCE_OUTPUTS = (
 )
 
 
-class _Bearing(RowOutputs, Unit):
+class BearingUnit(RowOutputs, Unit):
+    """Base of the bearing unit classes: the journal state in, the force of the type's
+    declared law (:mod:`.bearing_law`) out; nothing to integrate."""
+
     role = "bearing"
     inputs = JOURNAL_INPUTS
     outputs = FORCE_OUTPUTS
@@ -37,7 +40,7 @@ class _Bearing(RowOutputs, Unit):
         """The bearing force is algebraic in the journal state: nothing to integrate."""
 
 
-class OilFilmBearingUnit(_Bearing):
+class OilFilmBearingUnit(BearingUnit):
     """Capone short-bearing oil film."""
 
     type_name = "oilfilm"
@@ -48,7 +51,7 @@ class OilFilmBearingUnit(_Bearing):
     )
 
 
-class LinearBearingUnit(_Bearing):
+class LinearBearingUnit(BearingUnit):
     """Isotropic spring-damper bearing."""
 
     type_name = "linear"

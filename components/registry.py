@@ -9,6 +9,7 @@ from __future__ import annotations
 from collections.abc import Iterator, Mapping
 from typing import Any
 
+from .anisotropic_bearing import ANISOTROPIC_BEARING
 from .bearing_unit import LINEAR_BEARING, OILFILM_BEARING
 from .controller_unit import DELAYED_FEEDBACK
 from .declaration import DeclarationError, UnitType, Wire
@@ -152,6 +153,7 @@ REGISTRY = Registry(
         HUNT_CROSSLEY_STATOR,
         OILFILM_BEARING,
         LINEAR_BEARING,
+        ANISOTROPIC_BEARING,
         DELAYED_FEEDBACK,
         IMPACT_OSCILLATOR,
         TWO_DOF_IMPACT_OSCILLATOR,

@@ -11,21 +11,23 @@ import pytest
 
 import rubcosim as rc
 from rubcosim.components import bearing_law
+from rubcosim.components.anisotropic_bearing import ANISOTROPIC_BEARING
 from rubcosim.components.bearing import linear_bearing_force, oilfilm_force
 from rubcosim.components.bearing_unit import LINEAR_BEARING, OILFILM_BEARING, LinearBearingUnit
 from rubcosim.components.declaration import DeclarationError, FmuIdentity, UnitType
 from rubcosim.components.flat_params import flat_params, flat_type
 from rubcosim.components.flat_units import K_BEARING
+from rubcosim.reference import build_system, make_unit, simulate
 from rubcosim.reference import system as S
 
 
 def test_every_bearing_type_is_a_law_of_the_generated_dispatch_in_registry_order():
     # wiring: the dispatch's branches follow the registry, each law once
-    laws = bearing_law.bearing_laws()
-    assert laws == (OILFILM_BEARING.bearing, LINEAR_BEARING.bearing)
-    assert [bearing_law.law_index(t.bearing) for t in (OILFILM_BEARING, LINEAR_BEARING)] == [0, 1]
+    types = (OILFILM_BEARING, LINEAR_BEARING, ANISOTROPIC_BEARING)
+    assert bearing_law.bearing_laws() == tuple(t.bearing for t in types)
+    assert [bearing_law.law_index(t.bearing) for t in types] == [0, 1, 2]
     assert bearing_law.law_index(None) == -1
-    for t in (OILFILM_BEARING, LINEAR_BEARING):
+    for t in types:
         assert flat_type("bearing", t.type_name)[0] == K_BEARING
 
 
@@ -74,3 +76,72 @@ def test_a_bearing_law_naming_what_its_type_lacks_is_refused():
             FmuIdentity("X"),
             bearing=bearing_law.BearingLaw(linear_bearing_force, ("stiffness", "k3")),
         )
+
+
+# A two-mass rotor without unbalance or gravity on the anisotropic bearing is a linear
+# system: its free motion is exp(A t) y0, with A written here from the equations of
+# motion (disc m, shaft k and cs to the journal mj, damping c and cj to ground, bearing
+# F = -Kb q - Cb q'), apart from the code's kernels.
+DISC = dict(mass=10.0, damping=20.0, stiffness=5e6, shaft_damping=50.0, journal_mass=2.0)
+BEARING = dict(kxx=2e7, kyy=1.2e7, kxy=1.5e6, kyx=-1.5e6, cxx=4e3, cyy=3e3, cxy=200.0, cyx=-100.0)
+
+
+def state_matrix(d: dict, b: dict) -> np.ndarray:
+    m, c, k, cs, mj = d["mass"], d["damping"], d["stiffness"], d["shaft_damping"], d["journal_mass"]
+    kb = np.array([[b["kxx"], b["kxy"]], [b["kyx"], b["kyy"]]])
+    cb = np.array([[b["cxx"], b["cxy"]], [b["cyx"], b["cyy"]]])
+    eye = np.eye(2)
+    # q = (x, y, xj, yj): M q'' + C q' + K q = 0
+    mass = np.diag([m, m, mj, mj])
+    damp = np.block([[(c + cs) * eye, -cs * eye], [-cs * eye, cs * eye + cb]])
+    stiff = np.block([[k * eye, -k * eye], [-k * eye, k * eye + kb]])
+    a = np.zeros((8, 8))
+    a[:4, 4:] = np.eye(4)
+    a[4:, :4] = -np.linalg.solve(mass, stiff)
+    a[4:, 4:] = -np.linalg.solve(mass, damp)
+    return a
+
+
+@pytest.mark.parametrize("engine", ["fast", "accurate"])
+def test_free_motion_on_a_cross_coupled_bearing_is_the_matrix_exponential(engine):
+    from scipy.linalg import expm
+
+    x0 = dict(x0=3e-5, y0=-1e-5, vx0=0.0, vy0=0.02, journal_x0=1e-5, journal_vy0=-0.01)
+    rest = {"eccentricity": 0.0, "speed": 600.0, "gravity": 0.0}
+    rotor = make_unit("rotor", "two_mass", {**DISC, **x0, **rest})
+    bearing = make_unit("bearing", "anisotropic", dict(BEARING))
+    system = build_system({"rotor": rotor, "bearing": bearing})
+    t = np.linspace(0.0, 0.02, 41)
+    res = simulate(system, t[-1], t_eval=t, engine=engine, rtol=1e-11)
+    assert res.ok
+    names = ("rotor.x", "rotor.y", "rotor.journal_x", "rotor.journal_y")
+    got = np.array([res.output(n) for n in names])
+    # state order of state_matrix: (x, y, xj, yj, vx, vy, vxj, vyj)
+    y0 = np.array([3e-5, -1e-5, 1e-5, 0.0, 0.0, 0.02, 0.0, -0.01])
+    a = state_matrix(DISC, BEARING)
+    want = np.array([expm(a * ti) @ y0 for ti in t])[:, :4].T
+    scale = np.max(np.abs(want))
+    assert np.max(np.abs(got - want)) <= 1e-8 * scale
+
+
+def test_cross_coupling_past_the_threshold_makes_the_free_whirl_grow_at_the_eigenvalue_rate():
+    # enough cross-coupled stiffness (kxy = -kyx) destabilises forward whirl: the run grows
+    # at the largest real part of A's eigenvalues (the model's own instability, reported
+    # as it is, not damped away)
+    strong = {**BEARING, "kxy": 2.5e7, "kyx": -2.5e7}
+    rate = max(np.linalg.eigvals(state_matrix(DISC, strong)).real)
+    assert rate > 0.0
+    x0 = dict(x0=1e-6, journal_x0=0.0)
+    rest = {"eccentricity": 0.0, "speed": 600.0, "gravity": 0.0}
+    rotor = make_unit("rotor", "two_mass", {**DISC, **x0, **rest})
+    bearing = make_unit("bearing", "anisotropic", strong)
+    system = build_system({"rotor": rotor, "bearing": bearing})
+    # from 10 to 20 e-foldings, where the unstable mode has outgrown the others
+    t = np.linspace(10.0 / rate, 20.0 / rate, 2001)
+    res = simulate(system, t[-1], t_eval=t, engine="fast", rtol=1e-11)
+    assert res.ok
+    r = np.hypot(res.output("rotor.x"), res.output("rotor.y"))
+    # log |r| rises as rate * t; its oscillation (an elliptic whirl) averages out of a fit
+    # over many periods
+    grown = np.polyfit(t, np.log(r), 1)[0]
+    assert grown == pytest.approx(rate, rel=0.02)

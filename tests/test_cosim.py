@@ -31,6 +31,7 @@ CASES = {
     "jeffcott_elastic_casing": (0.03, 1e-6, True),
     "jeffcott_hunt_crossley_stator": (0.03, 1e-6, True),
     "two_mass_oilfilm_rub": (0.05, 1e-6, True),
+    "two_mass_anisotropic_bearing_rub": (0.05, 1e-6, True),
     "jeffcott_delayed_feedback": (0.2, 1e-6, True),
     "jeffcott_chaos_control": (0.1, 1e-6, True),
     # chaotic (largest Lyapunov exponent +32 1/s): differences grow e^(32 t), 25-fold

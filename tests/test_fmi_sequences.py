@@ -123,6 +123,7 @@ PARAMETER_SETS = {
         {"eccentricity": 5e-5, "damping": 100.0, "integrator": "dop853", "journal_x0": 1e-6},
     ),
     "RubcosimLinearBearing": ({}, {"stiffness": 2e7, "damping": 500.0}),
+    "RubcosimAnisotropicBearing": ({}, {"kxy": 1.5e6, "kyx": -1.5e6, "cxx": 400.0}),
     "RubcosimOilFilmBearing": ({}, {"viscosity": 0.03, "speed": 400.0}),
     "RubcosimTwoDofImpactOscillator": (
         {},
@@ -170,6 +171,7 @@ INPUT_SIZES = {
         "journal_fy": 100.0,
     },
     "RubcosimLinearBearing": {"x": 5e-5, "y": 5e-5, "vx": 0.01, "vy": 0.01},
+    "RubcosimAnisotropicBearing": {"x": 5e-5, "y": 5e-5, "vx": 0.01, "vy": 0.01},
     # the film's clearance is 1.5e-4 m: a journal drawn outside it has no outputs
     "RubcosimOilFilmBearing": {"x": 1.2e-4, "y": 1.2e-4, "vx": 0.01, "vy": 0.01},
     "RubcosimTwoDofImpactOscillator": {"force": 2.0},
@@ -1170,6 +1172,7 @@ CHANGED_PARAMETER = {
     "RubcosimHuntCrossleyStator": ("friction", 0.3),
     "RubcosimTwoMassRotor": ("shaft_damping", 10.0),
     "RubcosimLinearBearing": ("damping", 300.0),
+    "RubcosimAnisotropicBearing": ("cyy", 250.0),
     "RubcosimOilFilmBearing": ("viscosity", 0.05),
     "RubcosimTwoDofImpactOscillator": ("damping1", 0.05),
 }

@@ -38,6 +38,10 @@ STIMULI = {
     ("stator", "hunt_crossley"): ({"friction": 0.1, "restitution": 0.7}, None),
     ("bearing", "oilfilm"): ({}, lambda t: {"x": 3e-5 * math.cos(700 * t), "vx": 0.01}),
     ("bearing", "linear"): ({}, lambda t: {"x": 3e-5 * math.cos(700 * t), "vy": 0.01}),
+    ("bearing", "anisotropic"): (
+        {"kxy": 1.5e6, "kyx": -1.5e6, "cxx": 4e3, "cyy": 3e3, "cxy": 200.0},
+        lambda t: {"x": 3e-5 * math.cos(700 * t), "y": 1e-5, "vx": 0.01, "vy": -0.02},
+    ),
     ("controller", "delayed_feedback"): (
         # ETDAS with a telegraph delay, 0.37 ms +- 0.1 ms: within the tests' 10-20 steps
         # of 0.1 ms the history, the filter and the modulation's jumps are all at work
