@@ -279,12 +279,14 @@ class RowOutputs:
     kernel, so what feeds which output is written once."""
 
     def _outputs(self) -> dict[str, float]:
-        p = getattr(self, "_row_params", None)
-        if p is None:
+        # the row form and parameter row are the type's and the parameters': read once
+        # (the parameters never change after the unit is built)
+        form = getattr(self, "_row_form", None)
+        if form is None:
             p = flat_params(self.role, self.type_name, self.params)
-            self._row_params = p
+            form = self._row_form = (flat_type(self.role, self.type_name)[0], p)
+        kind, p = form
         out = np.zeros(MAX_OUTPUTS)
-        kind = flat_type(self.role, self.type_name)[0]
         row = unit_row(self)
         status = outputs(kind, p, row, out)
         if status != STEP_OK:

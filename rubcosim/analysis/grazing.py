@@ -54,7 +54,7 @@ def free_params(system: System) -> dict[str, Any]:
             raise AnalysisError("oscillator.stop: grazing is studied on rigid stops")
         return {"oscillator.stop": "none"}
     stator = system.units.get("stator")
-    if stator is None or stator.type != "rigid":
+    if stator is None or stator.declaration.contact.kind != "rigid":
         raise AnalysisError("units.stator: grazing is studied on a rigid stator")
     return {"stator.clearance": 1e6 * stator.params["clearance"]}
 

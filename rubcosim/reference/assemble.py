@@ -121,7 +121,8 @@ def _check_rotor_model(units: Mapping[str, UnitNode]) -> None:
     two-mass rotor, the oil film needs spin, the journal and disc start inside."""
     r = units["rotor"].params
     stator, bearing = units.get("stator"), units.get("bearing")
-    two_mass = units["rotor"].type == "two_mass"
+    # a rotor with a journal (the two-mass rotor) is held by a bearing
+    two_mass = any(st.name == "journal_x" for st in units["rotor"].declaration.states)
     if bearing is not None and not two_mass:
         raise ParameterError(
             "bearing: a bearing needs rotor.type = 'two_mass' (it holds the journal)"
@@ -135,7 +136,7 @@ def _check_rotor_model(units: Mapping[str, UnitNode]) -> None:
             raise ParameterError(
                 "rotor.journal_x0/journal_y0 put the journal outside the bearing clearance"
             )
-    if stator is not None and stator.type == "rigid":
+    if stator is not None and stator.declaration.contact.kind == "rigid":
         s = stator.params
         if math.hypot(r["x0"] - s["x_offset"], r["y0"] - s["y_offset"]) > s["clearance"]:
             raise ParameterError(
