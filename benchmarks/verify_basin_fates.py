@@ -4,8 +4,10 @@ Runs :func:`rubcosim.basins` on the paper's case (``feng_yang_attractors``: its
 ``[basins]`` table, 200 x 200 cells x 16 samples), draws ``--draw`` random samples
 whose fate is one of the attractors (not the sink), simulates each of them
 ``--periods`` forcing periods at ``--rtol`` with the compiled map, and classifies it
-by where it ends: within ``1e-4`` of a point of a periodic attractor's orbit on the
-section, that attractor; otherwise the attractor that is not periodic.  Reports how
+by where it ends (:func:`rubcosim.analysis.fate_check.classify`, the check every basins
+result gets, here on many more samples): within ``AT_ORBIT`` state scales of a point
+of a periodic attractor's orbit on the section, that attractor; otherwise the
+attractor that is not periodic.  Reports how
 many fates agree and lists the ones that do not.  Run from the repository root::
 
     .venv/bin/python benchmarks/verify_basin_fates.py [--draw 10000] [--periods 1000]
@@ -28,12 +30,12 @@ from stamp import stamp, stamp_line
 
 import rubcosim as rc
 from rubcosim.analysis.cellmap import CELL_MAP_RTOL, all_samples
+from rubcosim.analysis.fate_check import classify
 from rubcosim.analysis.maps import StroboscopicMap
 
 REPO = Path(__file__).resolve().parents[1]
 DEFAULT_OUT = REPO / "benchmarks" / "results"
 SCENARIO = "feng_yang_attractors"
-AT_ORBIT = 1e-4  # distance (state units, max norm) that counts as "on the periodic orbit"
 
 
 def _ends(args: tuple[np.ndarray, int, float]) -> tuple[np.ndarray, np.ndarray]:
@@ -42,21 +44,6 @@ def _ends(args: tuple[np.ndarray, int, float]) -> tuple[np.ndarray, np.ndarray]:
     smap = StroboscopicMap(rc.load(SCENARIO).system, rtol)
     ends, _, _, status = smap.map(states, periods=periods)
     return ends, status
-
-
-def _classify(ends: np.ndarray, motions: list[dict[str, Any]]) -> np.ndarray:
-    """Attractor index of each end state: the periodic orbit it sits on, else the
-    attractor that is not periodic (-1 if there is none)."""
-    out = np.full(ends.shape[0], -1)
-    for k, m in enumerate(motions):
-        if m["periodic"]:
-            orbit = np.asarray(m["poincare_points"])
-            d = np.min(np.max(np.abs(ends[:, None, :] - orbit[None]), axis=2), axis=1)
-            out[d < AT_ORBIT] = k
-    other = [k for k, m in enumerate(motions) if not m["periodic"]]
-    if other:
-        out[out < 0] = other[0]
-    return out
 
 
 def _markdown(res: dict[str, Any]) -> str:
@@ -107,7 +94,7 @@ def main(argv: list[str] | None = None) -> int:
     t2 = time.perf_counter()
     ends = np.concatenate([e for e, _ in parts])
     failed = int(np.sum(np.concatenate([s for _, s in parts]) != 0))
-    direct = _classify(ends, b.motions)
+    direct = classify(ends, b.motions, StroboscopicMap(rc.load(SCENARIO).system, args.rtol).scale)
     labels = [f"{k + 1}: {m['label']}" for k, m in enumerate(b.motions)]
     wrong = np.flatnonzero(direct != fates[pick])
     res = {

@@ -208,14 +208,16 @@ def basins(
     progress: bool = False,
     method: str | None = None,
     slice: str | Sequence[str] | None = None,  # noqa: A002
+    check: int | None = None,
 ) -> Basins:
     """Basins of attraction on the stroboscopic section: ``grid = (nx, nv)`` cells over
     ``region = (x0, x1, v0, v1)`` (the state's units, e.g. m and m/s), ``samples``
-    random points per cell from ``seed``.  ``method``: ``"gcm"`` (the default without
-    ``slice``), generalized cell mapping on the one-period map of a single-DOF
-    scenario (:mod:`rubcosim.analysis.cellmap`); ``"pursuit"``, every sample followed
-    to a verified attractor, with the saddles by Newton (:mod:`rubcosim.analysis.pursuit`;
-    needed where the map is close to the identity, as in Feng & Yang's case);
+    random points per cell from ``seed``.  ``method``: ``"pursuit"`` (the default without
+    ``slice``), every sample of a single-DOF scenario's section followed to a verified
+    attractor, with the saddles by Newton (:mod:`rubcosim.analysis.pursuit`; it finds
+    what cell mapping misses where the map is close to the identity, as in Feng & Yang's
+    case); ``"gcm"``, generalized cell mapping on the one-period map
+    (:mod:`rubcosim.analysis.cellmap`: faster, and its check may say it is wrong);
     ``"slice"`` (the default with ``slice``), any delay-free scenario: the grid spans
     the two state components ``slice = (name1, name2)`` (default the first two), the
     others keep the scenario's initial values, and every sample is followed in the
@@ -223,14 +225,18 @@ def basins(
     ``samples``, ``region``, ``seed`` and ``slice`` not given here is taken from the
     scenario's ``[basins]`` table (:mod:`rubcosim.basinsettings`) when it has it;
     ``grid``, ``samples`` and ``region`` are needed from one or the other.
-    ``result.info`` holds the wall time (s)."""
+    ``check`` samples (default :data:`rubcosim.analysis.fate_check.DRAW`; 0: none) with
+    a definite fate are simulated directly and their fates compared
+    (:mod:`rubcosim.analysis.fate_check`): ``result.info["fate_check"]``.
+    ``result.info`` holds the wall time (s) too."""
     import time
 
     from .analysis.cellmap import CELL_MAP_RTOL, Grid, cell_mapping
     from .analysis.errors import AnalysisError
+    from .analysis.fate_check import DRAW, check_fates
     from .analysis.maps import StroboscopicMap
     from .analysis.pursuit import pursuit_basins
-    from .analysis.slices import parse_slice, slice_basins
+    from .analysis.slices import parse_slice, slice_basins, slice_states
     from .basinsettings import BASIN_METHODS
 
     sc = _scenario(scenario)
@@ -244,7 +250,10 @@ def basins(
             )
     grid, samples, region, slice = opts["grid"], opts["samples"], opts["region"], opts["slice"]
     seed = 0 if opts["seed"] is None else opts["seed"]
-    method = opts["method"] or ("gcm" if slice is None else "slice")
+    method = opts["method"] or ("pursuit" if slice is None else "slice")
+    draw = DRAW if check is None else check
+    if not (isinstance(draw, int) and draw >= 0):
+        raise AnalysisError(f"--check {check!r}: a number of samples >= 0")
     if method not in BASIN_METHODS:
         raise AnalysisError(f"--method {method!r}: one of {', '.join(BASIN_METHODS)}")
     axes = parse_slice(sc.system, slice) if slice is not None or method == "slice" else (0, 1)
@@ -265,13 +274,17 @@ def basins(
         result = run(
             smap, cells, samples, seed, workers, scheduler, checkpoint_dir, progress=progress
         )
+    wall = time.perf_counter() - t0
+    if draw:
+        states_of = (lambda pts: slice_states(smap, pts, axes)) if method == "slice" else None
+        result.info["fate_check"] = check_fates(smap, result, states_of, draw, seed=seed)
     result.info = {
         **result.info,
         "method": method,
         "parameters": sc.parameters,
         "state_names": sc.system.state_names,
         "rtol": smap.rtol,
-        "wall_time_s": time.perf_counter() - t0,
+        "wall_time_s": wall,
     }
     return result
 

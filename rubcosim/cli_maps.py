@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import shutil
+import sys
 from typing import Any
 
 from . import api
@@ -91,7 +92,9 @@ def add_parsers(sub: Any, scenario_help: str) -> None:
         metavar="NAME",
         help="state drawn against the parameter (default: the first)",
     )
-    bs = sub.add_parser("basins", help="basins of attraction by generalized cell mapping")
+    bs = sub.add_parser(
+        "basins", help="basins of attraction, their attractors and saddles on the section"
+    )
     common(bs)
     bs.add_argument(
         "--grid", metavar="NXxNV", help="cells in x and x' (default: the scenario's basins.grid)"
@@ -104,12 +107,19 @@ def add_parsers(sub: Any, scenario_help: str) -> None:
     bs.add_argument(
         "--method",
         default=None,
-        help=f"{' or '.join(BASIN_METHODS)}; gcm (default): generalized cell mapping on "
-        "the one-period map; pursuit: every sample followed to a verified attractor, "
-        "saddles by Newton (for maps close to the identity, e.g. "
-        "scenarios/feng_yang_attractors.toml); slice (default with --slice): every "
-        "sample followed in the full state space, any delay-free system; default: the "
-        "scenario's basins.method",
+        help=f"{' or '.join(BASIN_METHODS)}; pursuit (default): every sample followed to a "
+        "verified attractor, saddles by Newton; gcm: generalized cell mapping on the "
+        "one-period map (faster; it misses attractors where the map is close to the "
+        "identity, e.g. scenarios/feng_yang_attractors.toml, and its check then says so); "
+        "slice (default with --slice): every sample followed in the full state space, "
+        "any delay-free system; default: the scenario's basins.method",
+    )
+    bs.add_argument(
+        "--check",
+        type=int,
+        default=None,
+        metavar="N",
+        help="samples whose fate is checked by direct simulation (default 100; 0: none)",
     )
     bs.add_argument(
         "--slice",
@@ -179,11 +189,13 @@ def _run_basins(args: argparse.Namespace, scenario: Any, opts: dict[str, Any], c
         progress=not args.no_progress,
         method=opts["method"],
         slice=opts["slice"],
+        check=args.check,
     )
 
 
 def cmd_basins(args: argparse.Namespace) -> int:
     from .analysis.cellmap import Grid
+    from .analysis.fate_check import verdict
     from .analysis.outputs import checkpoint_dir, write_basins
     from .analysis.published import basins_summary
     from .analysis.slices import parse_slice
@@ -222,4 +234,11 @@ def cmd_basins(args: argparse.Namespace) -> int:
     )
     for line in basins_summary(basins, scenario.name):
         print(line)
+    check = basins.info.get("fate_check")
+    if check is not None:
+        trusted = check["agree"] == check["checked"]
+        print(
+            f"rubcosim: {'' if trusted else 'warning: '}{verdict(check)}",
+            file=None if trusted else sys.stderr,
+        )
     return 0

@@ -101,7 +101,7 @@ def test_pursuit_agrees_with_cell_mapping_on_two_well_separated_attractors():
     two_well = ['oscillator.stop="none"', "oscillator.forcing_amplitude=2.0"]
     sc = rc.load(duffing, two_well)
     args = ((30, 30), 4, (-2.0, 4.0, -4.0, 4.0))
-    gcm = rc.basins(sc, *args, workers=1)
+    gcm = rc.basins(sc, *args, workers=1, method="gcm")
     pur = rc.basins(sc, *args, workers=1, method="pursuit")
     assert gcm.n_attractors == pur.n_attractors == 2 and pur.info["method"] == "pursuit"
     for m in pur.motions:  # the same two 1-0 orbits (found by direct simulation)
