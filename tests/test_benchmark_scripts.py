@@ -7,7 +7,6 @@ import json
 import sys
 from pathlib import Path
 
-import numpy as np
 import pytest
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "benchmarks"))
@@ -99,16 +98,3 @@ def test_basins_benchmark_times_the_process_and_writes_its_table(tmp_path):
     assert len(data["wall_s"]) == 1 and data["wall_s"][0] > 0 and not data["met"]
     assert data["meta"]["git_commit"] and data["report"]["samples"]["total"] == 20 * 20 * 2
     assert "| P4 |" in (tmp_path / "basins_feng_yang_quick.md").read_text()
-
-
-def test_basin_fates_check_classifies_end_states_by_the_orbit_they_end_on():
-    import verify_basin_fates as vbf
-
-    motions = [
-        {"periodic": True, "poincare_points": [[0.5, 0.5]]},
-        {"periodic": False},
-        {"periodic": True, "poincare_points": [[1.0, 0.0], [-1.0, 0.0]]},  # period 2
-    ]
-    ends = np.array([[0.5, 0.5 + 5e-5], [0.5, 0.5 + 5e-4], [-1.0 + 1e-5, 0.0], [1.0, 0.0]])
-    assert list(vbf._classify(ends, motions)) == [0, 1, 2, 2]
-    assert list(vbf._classify(ends, motions[:1])) == [0, -1, -1, -1]  # no other attractor

@@ -68,3 +68,17 @@ def test_predicted_fates_leave_out_the_sink_and_boundary_cells(feng_yang):
 def test_a_negative_check_count_names_the_flag(feng_yang):
     with pytest.raises(AnalysisError, match="--check"):
         rc.basins(feng_yang, (6, 8), 1, workers=1, check=-1)
+
+
+def test_basin_fates_check_classifies_end_states_by_the_orbit_they_end_on():
+    # (moved from test_benchmark_scripts: verify_basin_fates classifies with this
+    # function; at state scales 0.1, AT_ORBIT = 1e-3 scales is its 1e-4 in state units)
+    motions = [
+        {"periodic": True, "poincare_points": [[0.5, 0.5]]},
+        {"periodic": False},
+        {"periodic": True, "poincare_points": [[1.0, 0.0], [-1.0, 0.0]]},  # period 2
+    ]
+    scale = np.array([0.1, 0.1])
+    ends = np.array([[0.5, 0.5 + 5e-5], [0.5, 0.5 + 5e-4], [-1.0 + 1e-5, 0.0], [1.0, 0.0]])
+    assert list(classify(ends, motions, scale)) == [0, 1, 2, 2]
+    assert list(classify(ends, motions[:1], scale)) == [0, -1, -1, -1]  # no other attractor

@@ -55,14 +55,14 @@ def classify(ends: np.ndarray, motions: list[dict[str, Any]], scale: np.ndarray)
     """The attractor each end state (rows, full state) sits on (see the module's
     docstring); -1 for none."""
     out = np.full(ends.shape[0], -1)
-    known = [m for m in motions if "poincare_points" in m]  # not a failed simulation
+    known = [m.get("label") != "unknown" for m in motions]  # not a failed simulation
     periodic = [m.get("periodic", bool(m.get("period"))) for m in motions]
     for k, m in enumerate(motions):
-        if periodic[k] and m in known:
+        if periodic[k] and known[k]:
             orbit = np.asarray(m["poincare_points"], dtype=float)
             d = np.abs(ends[:, None, :] - orbit[None]) / scale
             out[np.min(np.max(d, axis=2), axis=1) < AT_ORBIT] = k
-    other = [k for k, m in enumerate(motions) if not periodic[k] and m in known]
+    other = [k for k in range(len(motions)) if not periodic[k] and known[k]]
     if other:
         out[(out < 0) & np.all(np.isfinite(ends), axis=1)] = other[0]
     return out
