@@ -27,7 +27,8 @@ import uuid
 from dataclasses import dataclass
 from pathlib import Path
 
-from rubcosim import __version__, components
+from rubcosim import components
+from rubcosim._version import __version__
 from rubcosim.components.registry import REGISTRY
 from rubcosim.components.unit import Unit
 

@@ -1,10 +1,11 @@
 """The package's import graph, read from the sources (imports inside functions
 included): the components import nothing above them, and among themselves form no
-cycle."""
+cycle; the whole package's modules (every folder pyproject installs) form no cycle."""
 
 from __future__ import annotations
 
 import ast
+import tomllib
 from pathlib import Path
 
 import pytest
@@ -85,3 +86,36 @@ def test_the_components_import_one_another_without_a_cycle(components):
     assert _cycle(edges) == []
     # the check finds a cycle where there is one
     assert _cycle({"a": {"b"}, "b": {"c"}, "c": {"a"}}) == ["a", "b", "c", "a"]
+
+
+def _package_folders() -> dict[str, Path]:
+    """Every package pyproject installs -> its folder (package-dir maps a package and,
+    below it, its subpackages: ``rubcosim.fmus.loader`` is ``fmus/loader``)."""
+    setup = tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["setuptools"]
+    where = setup["package-dir"]
+    folders = {}
+    for package in setup["packages"]:
+        parent = max((p for p in where if package == p or package.startswith(p + ".")), key=len)
+        rest = package[len(parent) :].lstrip(".").split(".") if package != parent else []
+        folders[package] = ROOT.joinpath(where[parent], *rest)
+    return folders
+
+
+def test_the_whole_package_imports_itself_without_a_cycle():
+    known: dict[str, Path] = {}
+    for package, folder in _package_folders().items():
+        assert folder.is_dir(), folder
+        known.update(_modules(folder, package))
+    # the graph holds every layer: the package, the reference, the co-simulation, the FMUs
+    for module in (
+        "rubcosim",
+        "rubcosim.api",
+        "rubcosim.reference.simulate",
+        "rubcosim.analysis.sweep",
+        "rubcosim.orchestrator.assembly",
+        "rubcosim.fmus.build",
+        COMPONENTS,
+    ):
+        assert module in known
+    edges = {m: {i for i in _imports(m, p, known) if i in known} for m, p in known.items()}
+    assert _cycle(edges) == []

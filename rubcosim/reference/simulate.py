@@ -13,7 +13,7 @@ from rubcosim.compile_notice import announce
 from rubcosim.progress import watch
 from rubcosim.timegrid import output_grid
 
-from . import compile_ahead
+from . import compile_helper
 from .assemble import System
 from .core import (
     C_EVAL,
@@ -124,13 +124,13 @@ def _warm_up(
         return 0.0
     _WARM.add(key)
     t0 = time.perf_counter()
-    helper = compile_ahead.start(system, engine)
+    helper = compile_helper.start(system, engine)
     model = compiled_model(system)  # says so if it compiles
     if helper is not None:
         helper.finish()
-    with announce(compile_ahead.engine_label(engine, system.has_delay)):
+    with announce(compile_helper.engine_label(engine, system.has_delay)):
         tiny_run(system, model, engine, t_start, rtol, atol, max_step)
-    compile_ahead.mark_compiled(engine, system.has_delay)
+    compile_helper.mark_compiled(engine, system.has_delay)
     return time.perf_counter() - t0
 
 
