@@ -32,17 +32,22 @@ from .registered import registered
 class BearingLaw:
     """A bearing type's force law (see the module's docstring): ``force`` its kernel,
     ``args`` the names of the quantities it takes after the journal state, ``wall``
-    the one of them that is the radius (m) where its force ends ("" for none) and
-    ``model`` what a message calls the law there."""
+    the one of them that is the radius (m) where its force ends ("" for none: the
+    journal must start inside it), ``positive`` those of them that must be > 0 for the
+    law to hold (the oil film's spin) and ``model`` what a message calls the law."""
 
     force: Callable[..., tuple[float, float]]
     args: tuple[str, ...]
     wall: str = ""
     model: str = "the bearing's force law"
+    positive: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
         if self.wall and self.wall not in self.args:
             raise ValueError(f"bearing law: its wall {self.wall!r} is not one of its args")
+        for name in self.positive:
+            if name not in self.args:
+                raise ValueError(f"bearing law: its positive {name!r} is not one of its args")
 
 
 def bearing_laws() -> tuple[BearingLaw, ...]:

@@ -79,7 +79,11 @@ OILFILM_BEARING = UnitType(
     length_scale=lambda q: q["clearance"],
     kernels=(oilfilm_force,),
     bearing=BearingLaw(
-        oilfilm_force, ("speed", "clearance", "sigma"), wall="clearance", model="the oil-film model"
+        oilfilm_force,
+        ("speed", "clearance", "sigma"),
+        wall="clearance",
+        model="the oil-film model",
+        positive=("speed",),  # the film's pressure comes from the journal's spin
     ),
 )
 

@@ -34,6 +34,10 @@ from .jit import njit
 from .registered import registered
 
 CONTACT_KINDS = ("rigid", "penalty")
+# The events a stator's contact makes (the third column of :data:`WATCHED`), numbered
+# for compiled code: ``EV_IMPACT`` ... ``EV_OFF``.
+EVENT_KINDS = ("impact", "release", "slip", "contact_on", "contact_off")
+EV_IMPACT, EV_RELEASE, EV_SLIP, EV_ON, EV_OFF = range(5)
 
 # What a co-simulation master watches of a stator, by its contact kind and state: rows
 # of (output crossing zero, direction -1 falling / +1 rising, the event it makes, the

@@ -3,12 +3,11 @@
 The compiled counterpart of :mod:`.event_steps` and :mod:`.protocols`: which
 indicators the protocols watch, whether a step may cross one, which crossing
 comes first, its location by re-running the step onto trial times (the one
-locator, :mod:`rubcosim.components.root_finding`), and what an event does (the
-rigid stator's impact, chattering end and contact modes through the shared
-kernels :func:`~rubcosim.components.stator.chattering_ended` and
-:func:`~rubcosim.components.stator.settle_mode`; a penalty stator's onset and
-release).  An indicator is a row ``(unit, output, direction, kind, rate output or
--1, protocol)``.
+locator, :mod:`rubcosim.components.root_finding`), and what an event does (a
+rigid stator's protocol program, :mod:`rubcosim.components.rigid_protocol`, which
+the Python master runs too; a penalty stator's onset and release are recorded).
+An indicator is a row ``(unit, output, direction, kind, rate output or -1,
+protocol)``.
 """
 
 from __future__ import annotations
@@ -19,6 +18,14 @@ import numpy as np
 
 from rubcosim.components.contact_law import penalty_state
 from rubcosim.components.jit import njit
+from rubcosim.components.rigid_protocol import (
+    ACT_DONE,
+    ACT_SET_MODE,
+    ST_MODE,
+    next_action,
+    start,
+)
+from rubcosim.components.rigid_protocol import overdue as rigid_overdue
 from rubcosim.components.root_finding import (
     F_CUR,
     R_B,
@@ -32,17 +39,9 @@ from rubcosim.components.root_finding import (
     bracket_with_rates,
     crossed_end,
 )
-from rubcosim.components.stator import (
-    MODE_FREE,
-    MODE_STICK,
-    chattering_ended,
-    settle_mode,
-)
 
 from .coupling_kernels import PI_ERR_START, crossing_bracket, predicted_to_cross, secant_offset
 from .flat_layout import (
-    EV_IMPACT,
-    EV_RELEASE,
     EVENTS_OFF,
     F_PERIOD,
     F_T_TOL,
@@ -61,10 +60,6 @@ from .flat_layout import (
     PF_MIN_FLIGHT,
     PF_V_CHAT,
     PR_RIGID,
-    PS_COUNTER,
-    PS_LAST_IMPACT,
-    PS_MODE,
-    PS_SCALE,
     RESET_COUNTER_INPUT,
     RESET_VX_INPUT,
     RESET_VY_INPUT,
@@ -102,7 +97,7 @@ def indicators(G, S, inds):
     for p in range(G.pr_kind.shape[0]):
         s, kind = G.pr_stator[p], G.pr_kind[p]
         if kind == PR_RIGID:
-            state = int(S.prs[p, PS_MODE])
+            state = int(S.prs[p, ST_MODE])
         else:
             state = penalty_state(S.out[s, PENALTY_GAP])
         for j in range(WATCH.shape[2]):
@@ -224,45 +219,30 @@ def locate(G, S, ind, bef_i, t, h, lo, hi):
 
 
 @njit
-def _set_mode(G, S, p, mode):
-    S.prs[p, PS_MODE] = mode
-    set_input(S, G.pr_stator[p], RIGID_MODE_INPUT, float(mode))
-    return settle(G, S, False, S.scratch)
-
-
-@njit
-def _settle_contact(G, S, p, slipping_from):
-    """Sliding with the sign of the slip, sticking when friction holds it, free when
-    nothing presses the disc on (``RigidContact._settle_contact``)."""
-    s = G.pr_stator[p]
-    if slipping_from == MODE_FREE and _set_mode(G, S, p, np.int64(MODE_STICK)):
-        return 1
-    threshold = G.pr_f[p, PF_V_CHAT] if slipping_from == MODE_FREE else math.inf
-    mode = settle_mode(S.out[s, RIGID_SLIP], threshold, S.out[s, RIGID_HOLD_MARGIN],
-                       S.out[s, RIGID_HOLD_FORCE], slipping_from)  # fmt: skip
-    if mode != int(S.prs[p, PS_MODE]) and _set_mode(G, S, p, mode):
-        return 1
-    if S.out[s, RIGID_NORMAL] <= 0.0:
-        return _set_mode(G, S, p, np.int64(MODE_FREE))
-    return 0
-
-
-@njit
-def _impact(G, S, p):
-    s, r = G.pr_stator[p], G.pr_rotor[p]
-    S.prs[p, PS_COUNTER] += 1.0
-    set_input(S, r, RESET_VX_INPUT, S.out[s, RIGID_VX_PLUS])
-    set_input(S, r, RESET_VY_INPUT, S.out[s, RIGID_VY_PLUS])
-    set_input(S, r, RESET_COUNTER_INPUT, S.prs[p, PS_COUNTER])
-    time = S.ms[MS_TIME]
-    if unit_step(G, S, r, time, 0.0) or settle(G, S, False, S.scratch):
-        return 1
-    flight = time - S.prs[p, PS_LAST_IMPACT]
-    S.prs[p, PS_LAST_IMPACT] = time
-    rebound = S.out[s, RIGID_GAP_RATE]
-    if chattering_ended(rebound, G.pr_f[p, PF_V_CHAT], flight, G.pr_f[p, PF_MIN_FLIGHT]):
-        return _settle_contact(G, S, p, np.int64(MODE_FREE))
-    return 0
+def _rigid_event(G, S, p, kind):
+    """A rigid stator's event: run its protocol's program
+    (:mod:`rubcosim.components.rigid_protocol`, as ``RigidContact.handle``), performing
+    each action on the units; 1 on a failure."""
+    s, r, st = G.pr_stator[p], G.pr_rotor[p], S.prs[p]
+    start(st, kind)
+    while True:
+        action, arg = next_action(
+            st, S.ms[MS_TIME], S.out[s, RIGID_GAP_RATE], S.out[s, RIGID_SLIP],
+            S.out[s, RIGID_HOLD_MARGIN], S.out[s, RIGID_HOLD_FORCE], S.out[s, RIGID_NORMAL],
+            G.pr_f[p, PF_V_CHAT], G.pr_f[p, PF_MIN_FLIGHT],
+        )  # fmt: skip
+        if action == ACT_DONE:
+            return 0
+        if action == ACT_SET_MODE:
+            set_input(S, s, RIGID_MODE_INPUT, arg)
+        else:
+            set_input(S, r, RESET_VX_INPUT, S.out[s, RIGID_VX_PLUS])
+            set_input(S, r, RESET_VY_INPUT, S.out[s, RIGID_VY_PLUS])
+            set_input(S, r, RESET_COUNTER_INPUT, arg)
+            if unit_step(G, S, r, S.ms[MS_TIME], 0.0):
+                return 1
+        if settle(G, S, False, S.scratch):
+            return 1
 
 
 @njit(inline="always")
@@ -272,13 +252,7 @@ def overdue(G, S, p):
     if G.pr_kind[p] != PR_RIGID:
         return False
     s = G.pr_stator[p]
-    gap = S.out[s, RIGID_GAP]
-    S.prs[p, PS_SCALE] = max(S.prs[p, PS_SCALE], abs(gap))
-    return (
-        int(S.prs[p, PS_MODE]) == MODE_FREE
-        and gap < -1e-9 * S.prs[p, PS_SCALE]
-        and S.out[s, RIGID_GAP_RATE] < 0.0
-    )
+    return rigid_overdue(S.prs[p], S.out[s, RIGID_GAP], S.out[s, RIGID_GAP_RATE])
 
 
 @njit
@@ -298,15 +272,7 @@ def event(G, S, kind, p):
     the event is recorded, the inputs settle and the extrapolation restarts."""
     if G.iset[I_CONTROLLERS] and _left_limits(G, S):
         return 1
-    status = 0
-    if G.pr_kind[p] == PR_RIGID:
-        if kind == EV_IMPACT:
-            status = _impact(G, S, p)
-        elif kind == EV_RELEASE:
-            status = _set_mode(G, S, p, np.int64(MODE_FREE))
-        else:
-            status = _settle_contact(G, S, p, int(S.prs[p, PS_MODE]))
-    if status:
+    if G.pr_kind[p] == PR_RIGID and _rigid_event(G, S, p, kind):
         return 1
     n = int(S.ms[MS_N_EVENTS])
     time = S.ms[MS_TIME]

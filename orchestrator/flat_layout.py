@@ -22,7 +22,15 @@ import numpy as np
 from numba.core import types
 from numba.experimental import structref
 
-from rubcosim.components.contact_law import WATCHED
+from rubcosim.components.contact_law import (  # noqa: F401 (EVENT_KINDS, EV_*: the layout's)
+    EV_IMPACT,
+    EV_OFF,
+    EV_ON,
+    EV_RELEASE,
+    EV_SLIP,
+    EVENT_KINDS,
+    WATCHED,
+)
 from rubcosim.components.jit import njit
 from rubcosim.components.rotor_unit import JeffcottRotorUnit, TwoMassRotorUnit
 from rubcosim.components.stator_unit import (
@@ -117,12 +125,9 @@ COUNTERS = (
 ) = range(11)  # fmt: skip
 
 # event kinds (N_EV0 + kind is the kind's counter)
-EVENT_KINDS = ("impact", "release", "slip", "contact_on", "contact_off")
-EV_IMPACT, EV_RELEASE, EV_SLIP, EV_ON, EV_OFF = range(5)
 
 # protocols
 PR_RIGID, PR_ELASTIC = 0, 1
-PS_MODE, PS_COUNTER, PS_LAST_IMPACT, PS_SCALE = range(4)  # S.prs columns
 PF_V_CHAT, PF_MIN_FLIGHT = 0, 1  # G.pr_f columns
 
 

@@ -37,6 +37,7 @@ from rubcosim.components import flat_units as fu
 from rubcosim.components.delay_history import ROW
 from rubcosim.components.flat_calls import unit_calls
 from rubcosim.components.flat_hybrid import MAX_MODES, output_map
+from rubcosim.components.rigid_protocol import N_STATE
 from rubcosim.components.unit import Unit
 from rubcosim.progress import watch
 
@@ -176,15 +177,10 @@ def _state(master: Any, G: L.FlatGraph, t_start: float) -> L.FlatState:
     n_units, n_conn = G.kind.shape[0], G.c_input.shape[0]
     ust = np.array([fu.unit_row(u) for u in master.units.values()])
     n_proto = max(G.pr_kind.shape[0], 1)
-    prs = np.zeros((n_proto, 4))
+    prs = np.zeros((n_proto, N_STATE))  # a penalty protocol keeps no state
     for i, pr in enumerate(master.protocols):
-        s = pr.state
-        prs[i] = (
-            s.get("mode", 0),
-            s.get("counter", 0),
-            s.get("last_impact", -math.inf),
-            s.get("scale", 0.0),
-        )
+        if isinstance(pr, RigidContact):
+            prs[i] = pr.state
     ms = np.zeros(L.MS_SIZE)
     ms[L.MS_TIME], ms[L.MS_H], ms[L.MS_ERR_PREV] = t_start, master.settings.step, 1e-4
     out = np.zeros((n_units, fu.MAX_OUTPUTS))

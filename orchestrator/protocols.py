@@ -8,11 +8,10 @@ mode, reset counter, last impact) is saved and restored with the master's.
 
 from __future__ import annotations
 
-import math
 from typing import Any, Protocol
 
-from rubcosim.components.contact_law import WATCHED, penalty_state
-from rubcosim.components.stator import MODE_FREE, MODE_STICK, chattering_ended, settle_mode
+from rubcosim.components import rigid_protocol
+from rubcosim.components.contact_law import EVENT_KINDS, WATCHED, penalty_state
 
 from .events import Indicator
 
@@ -55,6 +54,9 @@ class RigidContact(EventProtocol):
     """A rotor against a rigid stator: impacts through the velocity reset, then,
     when the rebounds die out (chattering), sustained sliding or sticking contact
     held by the stator's constraint force, and release when it falls to zero.
+    What an event does is the rigid stator's protocol program
+    (:mod:`rubcosim.components.rigid_protocol`, which the compiled master runs
+    too); this class performs its actions on the units.
 
     ``v_chat`` (m/s): a rebound slower than this ends chattering.  ``min_flight``
     (s): impacts closer together than this also end it, so an accumulation of
@@ -64,71 +66,42 @@ class RigidContact(EventProtocol):
     def __init__(self, stator: str, rotor: str, v_chat: float, min_flight: float) -> None:
         self.stator, self.rotor = stator, rotor
         self.v_chat, self.min_flight = v_chat, min_flight
-        self.state = {"mode": MODE_FREE, "counter": 0, "last_impact": -math.inf, "scale": 0.0}
+        self.state = rigid_protocol.initial_state()
+
+    @property
+    def mode(self) -> int:
+        """The contact mode (:data:`rubcosim.components.stator.MODE_FREE` ...)."""
+        return int(self.state[rigid_protocol.ST_MODE])
 
     def indicators(self, master: MasterView) -> list[Indicator]:
-        return watched("rigid", self.state["mode"], self.stator)
+        return watched("rigid", self.mode, self.stator)
 
     def overdue(self, master: MasterView) -> Indicator | None:
         """A disc found inside the stator, still approaching, missed an impact (a rebound
         too small for the event locator to resolve): the impact is applied now."""
         out = master.out[self.stator]
-        self.state["scale"] = max(self.state["scale"], abs(out["gap"]))
-        if (
-            self.state["mode"] == MODE_FREE
-            and out["gap"] < -1e-9 * self.state["scale"]
-            and out["gap_rate"] < 0.0
-        ):
+        if rigid_protocol.overdue(self.state, out["gap"], out["gap_rate"]):
             return self.indicators(master)[0]
         return None
 
-    def _set_mode(self, master: MasterView, mode: int) -> None:
-        self.state["mode"] = mode
-        master.set_event_input(self.stator, "contact_mode", mode)
-        master.settle()
-
     def handle(self, master: MasterView, ind: Indicator) -> str:
-        if ind.kind == "impact":
-            return self._impact(master)
-        if ind.kind == "release":
-            self._set_mode(master, MODE_FREE)
-            return "release"
-        self._settle_contact(master, slipping_from=self.state["mode"])
-        return "slip"
-
-    def _impact(self, master: MasterView) -> str:
-        out = master.out[self.stator]
-        self.state["counter"] += 1
-        master.set_event_input(self.rotor, "reset_vx", out["vx_plus"])
-        master.set_event_input(self.rotor, "reset_vy", out["vy_plus"])
-        master.set_event_input(self.rotor, "reset_counter", self.state["counter"])
-        master.apply_now(self.rotor)
-        master.settle()
-        flight = master.time - self.state["last_impact"]
-        self.state["last_impact"] = master.time
-        # the rebound is the normal speed the stator sees after the reset: its gap rate
-        rebound = master.out[self.stator]["gap_rate"]
-        if chattering_ended(rebound, self.v_chat, flight, self.min_flight):
-            # the disc stays on the stator if it is pressed onto it
-            self._settle_contact(master, slipping_from=MODE_FREE)
-        return "impact"
-
-    def _settle_contact(self, master: MasterView, slipping_from: int) -> None:
-        """Sliding with the sign of the slip, or sticking when the slip is zero and
-        friction can hold it (the kernel the reference calls); free when nothing
-        presses the disc onto the stator."""
-        if slipping_from == MODE_FREE:
-            # the stator gives its normal and holding forces only in a contact mode
-            self._set_mode(master, MODE_STICK)
-        out = master.out[self.stator]
-        threshold = self.v_chat if slipping_from == MODE_FREE else math.inf
-        mode = settle_mode(
-            out["slip"], threshold, out["hold_margin"], out["hold_force"], slipping_from
-        )
-        if mode != self.state["mode"]:
-            self._set_mode(master, mode)
-        if master.out[self.stator]["normal_force"] <= 0.0:
-            self._set_mode(master, MODE_FREE)
+        rigid_protocol.start(self.state, EVENT_KINDS.index(ind.kind))
+        while True:
+            out = master.out[self.stator]
+            action, arg = rigid_protocol.next_action(
+                self.state, master.time, out["gap_rate"], out["slip"], out["hold_margin"],
+                out["hold_force"], out["normal_force"], self.v_chat, self.min_flight,
+            )  # fmt: skip
+            if action == rigid_protocol.ACT_DONE:
+                return ind.kind
+            if action == rigid_protocol.ACT_SET_MODE:
+                master.set_event_input(self.stator, "contact_mode", int(arg))
+            else:
+                master.set_event_input(self.rotor, "reset_vx", out["vx_plus"])
+                master.set_event_input(self.rotor, "reset_vy", out["vy_plus"])
+                master.set_event_input(self.rotor, "reset_counter", int(arg))
+                master.apply_now(self.rotor)
+            master.settle()
 
 
 class ElasticContact(EventProtocol):

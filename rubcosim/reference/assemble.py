@@ -129,19 +129,40 @@ def _check_rotor_model(units: Mapping[str, UnitNode]) -> None:
         )
     if two_mass and bearing is None:
         raise ParameterError("rotor.type = 'two_mass' needs a 'bearing' unit for its journal")
-    if bearing is not None and bearing.type == "oilfilm":
-        if r["speed"] <= 0.0:
-            raise ParameterError("rotor.speed must be > 0 with an oil-film bearing")
-        if math.hypot(r["journal_x0"], r["journal_y0"]) >= bearing.params["clearance"]:
-            raise ParameterError(
-                "rotor.journal_x0/journal_y0 put the journal outside the bearing clearance"
-            )
+    if bearing is not None and bearing.declaration.bearing is not None:
+        _check_bearing_law(units)
     if stator is not None and stator.declaration.contact.kind == "rigid":
         s = stator.params
         if math.hypot(r["x0"] - s["x_offset"], r["y0"] - s["y_offset"]) > s["clearance"]:
             raise ParameterError(
                 "rotor.x0/rotor.y0 start the disc beyond the rigid stator's clearance "
                 "(stator.clearance about stator.x_offset/stator.y_offset)"
+            )
+
+
+def _check_bearing_law(units: Mapping[str, UnitNode]) -> None:
+    """What the bearing type's law declares (:class:`~rubcosim.components.bearing_law.
+    BearingLaw`): its ``positive`` quantities are > 0, and the journal it holds starts
+    inside its ``wall``."""
+    bearing = units["bearing"]
+    law = bearing.declaration.bearing
+    q = kernel_values(units)["bearing"]
+    sources = {n.param: n.source for n in bearing.declaration.needs}
+    for name in law.positive:
+        if not q[name] > 0.0:
+            where = sources.get(name, f"bearing.{name}")
+            raise ParameterError(f"{where} must be > 0 with {law.model} (bearing)")
+    if law.wall:
+        # the journal's initial position: the parameters giving the initial values of
+        # the rotor states the bearing's x and y inputs are wired to
+        initial = {f"rotor.{s.name}": s.initial for s in units["rotor"].declaration.states}
+        wired = {w.input: w.sources[0] for w in bearing.declaration.wiring}
+        names = [initial.get(wired.get(axis, ""), "") for axis in ("x", "y")]
+        r = units["rotor"].params
+        if all(names) and math.hypot(r[names[0]], r[names[1]]) >= q[law.wall]:
+            raise ParameterError(
+                f"rotor.{names[0]}/{names[1]} put the journal outside {law.model}'s "
+                f"{law.wall} (bearing.{law.wall})"
             )
 
 
