@@ -212,6 +212,14 @@ def _package(key: tuple[int, ...]) -> str:
     files = {"__init__.py": '"""Generated: one model\'s compiled modules."""\n', "model.py": model}
     for name, text in _template(which):
         files[f"{_flat(name)}.py"] = text
+    if os.environ.get("RUBCOSIM_SOURCE_INLINE", "1") == "1":
+        from rubcosim.components.source_inline import flatten_module
+
+        texts = {file[:-3]: text for file, text in files.items() if file != "__init__.py"}
+        for name, _ in _template(which):
+            flat = _flat(name)
+            others = {k: v for k, v in texts.items() if k != flat}
+            files[f"{flat}.py"] = flatten_module(texts[flat], "." + flat, others)
     digest = hashlib.sha256()
     for file, text in sorted(files.items()):
         digest.update(file.encode() + b"\0" + text.encode() + b"\0")
