@@ -35,9 +35,9 @@ import itertools
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from .source_inline_rewrites import Replace, evaluation_order, lower, pure
+
 _BUILTINS = frozenset(dir(builtins))
-_PURE_MODULES = frozenset({"math", "np", "numpy", "nb", "numba"})
-_PURE_BUILTINS = frozenset({"abs", "min", "max", "float", "int", "bool", "range", "len"})
 _MAX_EXPANSIONS = 5000
 
 
@@ -50,13 +50,14 @@ class Source:
     ref: str
     tree: ast.Module
     is_package: bool = False
+    text: str = ""
     functions: dict[str, ast.FunctionDef] = field(default_factory=dict)
     bound: dict[str, ast.stmt] = field(default_factory=dict)  # module-level names
 
     @classmethod
     def parse(cls, ref: str, text: str, is_package: bool = False) -> Source:
         tree = ast.parse(text)
-        src = cls(ref, tree, is_package)
+        src = cls(ref, tree, is_package, text)
         for node in tree.body:
             if isinstance(node, ast.FunctionDef):
                 src.functions[node.name] = node
@@ -200,6 +201,10 @@ class Flattener:
             self.aliases[alias] = (src, name)
         return self._alias_of[key]
 
+    def read(self) -> dict[str, str]:
+        """The installed modules read so far: name -> source text."""
+        return {name: src.text for name, src in self._installed.items() if src is not None}
+
     def imports(self) -> list[str]:
         """The import lines the aliases need, one per module."""
         by_module: dict[str, list[str]] = {}
@@ -262,22 +267,22 @@ class Flattener:
         if aug is not None:
             result = ast.Name(f"_r{next(self._counter)}", ast.Store())
             tail = [ast.AugAssign(aug.target, aug.op, ast.Name(result.id, ast.Load()))]
-            return _lower(body, result) + tail
-        return _lower(body, target)
+            return lower(body, result) + tail
+        return lower(body, target)
 
     def _hoist(self, expr: ast.expr) -> tuple[list[ast.stmt], ast.expr] | None:
         """Write out the first call of ``expr`` that can be, before the statement that
         holds it: ``(statements, expr with a name in its place)``."""
-        order = _evaluation_order(expr)
+        order = evaluation_order(expr)
         for node in order:
             if node is None:
                 return None  # a conditional part with a call: evaluation order unknown
             if self._callee(node.func) is not None:
                 name = f"_r{next(self._counter)}"
                 stmts = self._expand(node, ast.Name(name, ast.Store()), None)
-                replaced = _Replace(node, ast.Name(name, ast.Load())).visit(copy.copy(expr))
+                replaced = Replace(node, ast.Name(name, ast.Load())).visit(copy.copy(expr))
                 return stmts, replaced
-            if not _pure(node):
+            if not pure(node):
                 return None
         return None
 
@@ -334,101 +339,17 @@ class Flattener:
         return new
 
 
-def _lower(body: list[ast.stmt], target: ast.expr | None) -> list[ast.stmt]:
-    """The callee's statements with each ``return v`` an assignment ``target = v``
-    (or dropped), the statements after a branch that returns under its ``else``."""
-    out: list[ast.stmt] = []
-    for i, s in enumerate(body):
-        if isinstance(s, ast.Return):
-            if target is not None and s.value is not None:
-                out.append(ast.Assign([copy.deepcopy(target)], s.value))
-            return out
-        if isinstance(s, ast.If) and _has_return(s):
-            rest = body[i + 1 :]
-            new = copy.copy(s)
-            new.body = _lower(s.body if _ends(s.body) else s.body + rest, target) or [ast.Pass()]
-            new.orelse = _lower(s.orelse if _ends(s.orelse) else s.orelse + rest, target)
-            out.append(new)
-            return out
-        out.append(s)
-    return out
-
-
-def _has_return(node: ast.AST) -> bool:
-    return any(isinstance(n, ast.Return) for n in ast.walk(node))
-
-
-def _ends(stmts: list[ast.stmt]) -> bool:
-    """Whether every path through ``stmts`` returns."""
-    if not stmts:
-        return False
-    last = stmts[-1]
-    if isinstance(last, ast.Return):
-        return True
-    return isinstance(last, ast.If) and _ends(last.body) and _ends(last.orelse)
-
-
-def _evaluation_order(expr: ast.expr) -> list[ast.Call | None]:
-    """The calls of ``expr`` in the order they finish; ``None`` for a conditional part
-    (``and``, ``or``, ``x if c else y``) that holds a call."""
-    out: list[ast.Call | None] = []
-
-    def visit(node: ast.AST) -> None:
-        if isinstance(node, ast.BoolOp | ast.IfExp):
-            if any(isinstance(n, ast.Call) for n in ast.walk(node)):
-                out.append(None)
-            return
-        if isinstance(node, ast.Call):
-            visit(node.func)
-            for a in node.args:
-                visit(a)
-            for k in node.keywords:
-                visit(k.value)
-            out.append(node)
-            return
-        for child in ast.iter_child_nodes(node):
-            visit(child)
-
-    visit(expr)
-    return out
-
-
-def _pure(call: ast.Call) -> bool:
-    f = call.func
-    if isinstance(f, ast.Name):
-        return f.id in _PURE_BUILTINS
-    while isinstance(f, ast.Attribute):
-        f = f.value
-    return isinstance(f, ast.Name) and f.id in _PURE_MODULES
-
-
-class _Replace(ast.NodeTransformer):
-    def __init__(self, old: ast.AST, new: ast.expr) -> None:
-        self.old, self.new = old, new
-
-    def generic_visit(self, node: ast.AST) -> ast.AST:
-        if node is self.old:
-            return self.new
-        for name, value in ast.iter_fields(node):
-            if isinstance(value, list):
-                setattr(node, name, [self.visit(v) if isinstance(v, ast.AST) else v for v in value])
-            elif isinstance(value, ast.AST):
-                setattr(node, name, self.visit(value))
-        return node
-
-    def visit(self, node: ast.AST) -> ast.AST:
-        if node is self.old:
-            return self.new
-        node = copy.copy(node)
-        return self.generic_visit(node)
-
-
 def flatten_module(
-    text: str, ref: str, package: dict[str, str] | None = None, only: set[str] | None = None
+    text: str,
+    ref: str,
+    package: dict[str, str] | None = None,
+    only: set[str] | None = None,
+    read: dict[str, str] | None = None,
 ) -> str:
     """Module source ``text`` (imported as ``ref``) with the inlinable calls of its
     functions written out: those named in ``only``, by default every function that is
-    not itself inlinable.  ``package``: the generated package's other modules' texts."""
+    not itself inlinable.  ``package``: the generated package's other modules' texts;
+    ``read``, if given, receives the installed modules read (name -> source text)."""
     sources = {name: Source.parse(f".{name}", t) for name, t in (package or {}).items()}
     target = Source.parse(ref, text)
     flat = Flattener(target, sources)
@@ -447,6 +368,8 @@ def flatten_module(
             edits.append((first, node.end_lineno or node.lineno, ast.unparse(new)))
     for first, last, replacement in sorted(edits, reverse=True):
         lines[first - 1 : last] = replacement.splitlines()
+    if read is not None:
+        read.update(flat.read())
     imports = flat.imports()
     if imports:
         last_import = max(

@@ -24,9 +24,11 @@ from the package as usual.
 from __future__ import annotations
 
 import ast
+import contextlib
 import hashlib
 import importlib
 import importlib.util
+import json
 import os
 import re
 import sys
@@ -205,6 +207,43 @@ def _write(text: str, path: Path) -> None:
     os.replace(tmp, path)
 
 
+def _sha(text: str) -> str:
+    return hashlib.sha256(text.encode()).hexdigest()
+
+
+def _flattened(files: dict[str, str], names: list[str]) -> dict[str, str]:
+    """``files`` with the kernels of modules ``names`` written out at the source level
+    (:mod:`rubcosim.components.source_inline`), so that numba builds each kernel's IR
+    once instead of inlining its helpers call site by call site.  Writing them out
+    takes about 0.3 s, so the result is kept on disk under the hash of ``files``, with
+    the hashes of the installed modules it read: a process whose sources are those
+    reads it back."""
+    if os.environ.get("RUBCOSIM_SOURCE_INLINE", "1") != "1":
+        return files
+    digest = hashlib.sha256()
+    for file, text in sorted(files.items()):
+        digest.update(file.encode() + b"\0" + text.encode() + b"\0")
+    base = Path(os.environ.get("NUMBA_CACHE_DIR") or tempfile.gettempdir()) / "models"
+    memo = base / "flattened" / f"{digest.hexdigest()[:24]}.json"
+    with contextlib.suppress(OSError, ValueError, KeyError, AttributeError):
+        kept = json.loads(memo.read_text())
+        if all(
+            _sha(Path(importlib.util.find_spec(m).origin).read_text()) == h
+            for m, h in kept["read"].items()
+        ):
+            return kept["files"]
+    from rubcosim.components.source_inline import flatten_module
+
+    texts = {file[:-3]: text for file, text in files.items() if file != "__init__.py"}
+    out, read = dict(files), {}
+    for name in names:
+        others = {k: v for k, v in texts.items() if k != name}
+        out[f"{name}.py"] = flatten_module(texts[name], "." + name, others, read=read)
+    with contextlib.suppress(OSError):
+        _write(json.dumps({"files": out, "read": {m: _sha(t) for m, t in read.items()}}), memo)
+    return out
+
+
 @cache
 def _package(key: tuple[int, ...]) -> str:
     which = SCOPES[key[0]]
@@ -212,14 +251,7 @@ def _package(key: tuple[int, ...]) -> str:
     files = {"__init__.py": '"""Generated: one model\'s compiled modules."""\n', "model.py": model}
     for name, text in _template(which):
         files[f"{_flat(name)}.py"] = text
-    if os.environ.get("RUBCOSIM_SOURCE_INLINE", "1") == "1":
-        from rubcosim.components.source_inline import flatten_module
-
-        texts = {file[:-3]: text for file, text in files.items() if file != "__init__.py"}
-        for name, _ in _template(which):
-            flat = _flat(name)
-            others = {k: v for k, v in texts.items() if k != flat}
-            files[f"{flat}.py"] = flatten_module(texts[flat], "." + flat, others)
+    files = _flattened(files, [_flat(name) for name, _ in _template(which)])
     digest = hashlib.sha256()
     for file, text in sorted(files.items()):
         digest.update(file.encode() + b"\0" + text.encode() + b"\0")
