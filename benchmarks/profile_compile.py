@@ -6,12 +6,10 @@ runs ``rubcosim.simulate`` of a scenario on each ``--engine`` for a moment, in a
 process with an empty numba cache (``NUMBA_CACHE_DIR`` a new temporary directory), and
 sums the wall time of every compiler pass numba runs (its ``numba:run_pass`` events),
 less the passes nested in it (a pass that compiles a callee contains that callee's
-passes), by pass and by function.  ``--unpatched`` runs the same compile without
-rubcosim's replacement of numba's inlining pass
-(``components/numba_compile_time.py``), to measure what it saves.
+passes), by pass and by function.
 
     .venv/bin/python benchmarks/profile_compile.py [--scenario jeffcott_rigid_stator]
-        [--engine fast] [--engine accurate] [--top 20] [--unpatched]
+        [--engine fast] [--engine accurate] [--top 20]
 """
 
 from __future__ import annotations
@@ -28,10 +26,6 @@ import collections, json, sys, time
 from numba.core import event
 
 args = json.loads(sys.argv[1])
-if args["unpatched"]:
-    import rubcosim.components.numba_compile_time as nct
-
-    nct.install = lambda: {"inlining": False}
 stack, by_pass, by_function = [], collections.Counter(), collections.Counter()
 
 
@@ -66,13 +60,13 @@ print(json.dumps({"walls": walls, "passes": by_pass.most_common(),
 """
 
 
-def profile(scenario: str, engines: list[str], unpatched: bool) -> dict:
+def profile(scenario: str, engines: list[str]) -> dict:
     """The child's measurements: wall time per engine (s), self time per pass and per
     function (s, largest first)."""
     with tempfile.TemporaryDirectory() as cache:
         env = {**os.environ, "NUMBA_CACHE_DIR": cache, "RUBCOSIM_QUIET_COMPILE": "1"}
         env["RUBCOSIM_COMPILE_AHEAD"] = "0"  # every compile in this process, none in a helper
-        arg = json.dumps({"scenario": scenario, "engines": engines, "unpatched": unpatched})
+        arg = json.dumps({"scenario": scenario, "engines": engines})
         out = subprocess.run(
             [sys.executable, "-c", _CHILD, arg], env=env, capture_output=True, text=True
         )
@@ -86,14 +80,12 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--scenario", default="jeffcott_rigid_stator")
     ap.add_argument("--engine", action="append", choices=("fast", "accurate"))
     ap.add_argument("--top", type=int, default=20, help="functions listed")
-    ap.add_argument("--unpatched", action="store_true", help="without numba_compile_time")
     args = ap.parse_args(argv)
     engines = args.engine or ["fast"]
-    got = profile(args.scenario, engines, args.unpatched)
+    got = profile(args.scenario, engines)
     walls = ", ".join(f"{e} {s:.1f} s" for e, s in got["walls"].items())
     total = sum(s for _, s in got["passes"])
-    patched = "without" if args.unpatched else "with"
-    print(f"{args.scenario}, empty cache, {patched} rubcosim's numba inlining patch")
+    print(f"{args.scenario}, empty cache")
     print(f"wall: {walls}; numba's passes {total:.1f} s in all\n")
     print("| pass | self time |\n|---|---:|")
     for name, sec in got["passes"][:12]:

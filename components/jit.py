@@ -24,10 +24,6 @@ if not _BUNDLED or os.environ.get("RUBCOSIM_NUMBA") == "1":
     except ImportError:  # exercised by the FMU tests, in a process without numba
         _numba = None
 USE_NUMBA = _numba is not None
-if USE_NUMBA:
-    from .numba_compile_time import install_before_first_compile
-
-    install_before_first_compile()
 
 
 def njit(

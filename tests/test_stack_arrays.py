@@ -88,3 +88,23 @@ def test_max_states_covers_every_assembled_system() -> None:
     assert max(sizes) <= MAX_STATES
     assert all(len(t.states) <= MAX_STATES for t in hybrid_types())
     assert len(LAYOUT.ip_state) <= MAX_STATES
+
+
+def test_numba_is_the_release_pyproject_pins() -> None:
+    """The names numba does not document that rubcosim relies on (this module's
+    ``cgutils.alloca_once``/``make_array``, jit's ``_nrt`` option for ``borrows=True``)
+    were written against one numba release; pyproject pins it.  Another numba in this
+    environment (installed by hand) fails here first, by name, rather than somewhere
+    in a kernel."""
+    import tomllib
+    from pathlib import Path
+
+    from packaging.requirements import Requirement
+
+    pyproject = Path(__file__).resolve().parents[1] / "pyproject.toml"
+    deps = tomllib.loads(pyproject.read_text())["project"]["dependencies"]
+    pin = next(Requirement(d) for d in deps if Requirement(d).name == "numba")
+    assert pin.specifier.contains(nb.__version__), (
+        f"numba {nb.__version__} is not the release pyproject pins ({pin.specifier})"
+    )
+    assert pin.specifier.contains("0.68.1") and not pin.specifier.contains("0.69.0")

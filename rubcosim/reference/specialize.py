@@ -312,11 +312,6 @@ def compiled_model(system: Any) -> tuple[Any, ...]:
     terminal; loaded from numba's cache after that)."""
     key = model_key(system.ip)
     if key not in _KERNELS:
-        # C functions compile as their module is imported, without the compile event
-        # that installs rubcosim's cheaper inlining (components/numba_compile_time.py)
-        from rubcosim.components.numba_compile_time import install
-
-        install()
         with announce_when_slow(f"the kernels of {kernels_label(system)}"):
             kernels = specialized("rubcosim.reference.model_kernels", system.ip).KERNELS
         _KERNELS[key] = kernels
