@@ -27,6 +27,7 @@ _API = {
     "basins": "api",
     "lyapunov": "api",
     "control_study": "api",
+    "continuation": "api",
     "scenarios": "api",
     "Scenario": "scenario",
     "ScenarioError": "scenario",
@@ -43,6 +44,7 @@ __all__ = [
     "basins",
     "lyapunov",
     "control_study",
+    "continuation",
     "scenarios",
     "Scenario",
     "ScenarioError",
@@ -54,6 +56,7 @@ if TYPE_CHECKING:
     from .api import (
         basins,
         check,
+        continuation,
         control_study,
         cosimulate,
         load,

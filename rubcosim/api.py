@@ -355,3 +355,45 @@ def control_study(
         scheduler=scheduler,
         progress=progress,
     )
+
+
+def continuation(
+    scenario: ScenarioLike,
+    param: str,
+    start: float | None,
+    stop: float,
+    *,
+    period: int = 1,
+    y0: Sequence[float] | None = None,
+    settle: int = 300,
+    rtol: float | None = None,
+    step: float = 0.02,
+    max_step: float = 0.05,
+    max_points: int = 500,
+    set: Params = None,  # noqa: A002
+    progress: bool = False,
+) -> Any:
+    """Pseudo-arclength continuation (``rubcosim continue``) of the scenario's
+    ``period``-periodic orbit in ``param`` (``unit.name``) from ``start`` (default: its
+    value in the scenario) toward ``stop``.  The orbit is found by Newton on the
+    stroboscopic map from ``y0`` (the state at forcing phase 0), or from where the
+    scenario's initial state settles after ``settle`` periods.  ``step`` and
+    ``max_step``: arclength steps in fractions of the range.  Returns a ``Branch``:
+    ``points`` (parameter, state, Floquet multipliers, impacts, residual), ``special``
+    (located folds, flips, Neimark-Sacker points) and ``stop_reason``."""
+    from .analysis.continue_scenario import run_continuation
+
+    return run_continuation(
+        _scenario(scenario, set),
+        param,
+        start,
+        stop,
+        period=period,
+        y0=y0,
+        settle=settle,
+        rtol=rtol,
+        step=step,
+        max_step=max_step,
+        max_points=max_points,
+        progress=progress,
+    )

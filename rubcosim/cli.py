@@ -13,7 +13,7 @@ from rubcosim.orchestrator.cosim_result import CosimError
 from rubcosim.orchestrator.settings import BACKENDS
 from rubcosim.reference.simulate import ENGINES
 
-from . import api, cli_control, cli_lyapunov, cli_maps, cli_ssp
+from . import api, cli_continue, cli_control, cli_lyapunov, cli_maps, cli_ssp
 from .analysis.errors import AnalysisError
 from .chaos_check import summary
 from .cli_options import EXIT_BAD_INPUT, EXIT_RUN_FAILED, add_set_option
@@ -67,6 +67,7 @@ def _parser() -> argparse.ArgumentParser:
         )
     cli_maps.add_parsers(sub, SCENARIO_HELP)
     cli_lyapunov.add_parser(sub, SCENARIO_HELP)
+    cli_continue.add_parser(sub, SCENARIO_HELP)
     cli_control.add_parser(sub, SCENARIO_HELP)
     cli_ssp.add_parser(sub, SCENARIO_HELP)
     sub.add_parser("scenarios", help="list the bundled scenarios with their descriptions")
@@ -176,6 +177,7 @@ COMMANDS = {
     "sweep": cli_maps.cmd_sweep,
     "basins": cli_maps.cmd_basins,
     "lyapunov": cli_lyapunov.cmd_lyapunov,
+    "continue": cli_continue.cmd_continue,
     "control-study": cli_control.cmd_control_study,
     "export-ssp": cli_ssp.cmd_export_ssp,
     "scenarios": cmd_scenarios,

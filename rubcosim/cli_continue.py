@@ -1,0 +1,118 @@
+"""``rubcosim continue``: pseudo-arclength continuation of a periodic orbit."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+from typing import Any
+
+from . import api
+from .cli_options import EXIT_RUN_FAILED, add_set_option
+from .scenario import ScenarioError
+from .writing import check_output_dir, write_directory
+
+
+def add_parser(sub: Any, scenario_help: str) -> None:
+    """The ``continue`` sub-command's arguments."""
+    co = sub.add_parser(
+        "continue",
+        help="continue a periodic orbit in a parameter: stable and unstable orbits, "
+        "Floquet multipliers, folds, flips and Neimark-Sacker points",
+    )
+    co.add_argument("scenario", help=scenario_help)
+    add_set_option(co, "a parameter or initial state")
+    co.add_argument("--param", required=True, metavar="UNIT.PARAM", help="the parameter")
+    co.add_argument(
+        "--from",
+        dest="from_value",
+        type=float,
+        default=None,
+        help="where the branch starts (default: the parameter's value in the scenario)",
+    )
+    co.add_argument("--to", dest="to_value", type=float, required=True, help="toward this value")
+    co.add_argument("--period", type=int, default=1, help="the orbit's period n in forcing periods")
+    co.add_argument(
+        "--start",
+        dest="start_state",
+        default=None,
+        metavar="Y1,Y2,...",
+        help="the orbit's state at forcing phase 0, near enough for Newton (default: where "
+        "the initial state settles after --settle periods)",
+    )
+    co.add_argument("--settle", type=int, default=300, help="periods settled before Newton")
+    co.add_argument("--out", required=True, help="output directory")
+    co.add_argument("--rtol", type=float, default=None, help="the map's tolerance (1e-12)")
+    co.add_argument(
+        "--step", type=float, default=0.02, help="first arclength step, fraction of the range"
+    )
+    co.add_argument("--max-step", type=float, default=0.05, help="largest arclength step, fraction")
+    co.add_argument("--max-points", type=int, default=500, help="points at most")
+    co.add_argument(
+        "--plot-state", default=None, metavar="NAME", help="state drawn (default: the first)"
+    )
+    co.add_argument(
+        "--over-sweep",
+        default=None,
+        metavar="DIR",
+        help="a `rubcosim sweep` output of the same parameter, drawn beneath the branch",
+    )
+    co.add_argument("--no-progress", action="store_true", help="no progress bar")
+
+
+def _start(text: str | None) -> list[float] | None:
+    if text is None:
+        return None
+    try:
+        return [float(v) for v in text.split(",")]
+    except ValueError:
+        raise ScenarioError(f"--start {text!r}: expected numbers separated by commas") from None
+
+
+def cmd_continue(args: argparse.Namespace) -> int:
+    from .analysis.continuation_outputs import write_continuation
+    from .analysis.continue_scenario import settings_of
+
+    scenario = api.load(args.scenario, args.set)
+    out = check_output_dir(args.out)
+    names = scenario.system.state_names
+    plot_state = 0
+    if args.plot_state is not None:
+        if args.plot_state not in names:
+            raise ScenarioError(f"--plot-state {args.plot_state!r}: not one of {', '.join(names)}")
+        plot_state = names.index(args.plot_state)
+    sweep = None
+    if args.over_sweep is not None:
+        sweep = Path(args.over_sweep) / "sweep.npz"
+        if not sweep.is_file():
+            raise ScenarioError(f"--over-sweep {args.over_sweep}: holds no sweep.npz")
+    branch = api.continuation(
+        scenario,
+        args.param,
+        args.from_value,
+        args.to_value,
+        period=args.period,
+        y0=_start(args.start_state),
+        settle=args.settle,
+        rtol=args.rtol,
+        step=args.step,
+        max_step=args.max_step,
+        max_points=args.max_points,
+        progress=not args.no_progress,
+    )
+    settings = settings_of(
+        branch, param=args.param, start=args.from_value, stop=args.to_value, rtol=args.rtol,
+        step=args.step, max_step=args.max_step, max_points=args.max_points,
+    )  # fmt: skip
+    write_directory(out, lambda tmp: write_continuation(branch, tmp, settings, plot_state, sweep))
+    for sp in branch.special:
+        lam = sp.critical
+        print(
+            f"{sp.kind} at {branch.param} = {sp.param:.10g} (critical multiplier "
+            f"{lam.real:+.6f}{lam.imag:+.6f}j, residual {sp.residual:.1e})"
+        )
+    n_stable = int(branch.stable.sum())
+    print(
+        f"{scenario.name}: {len(branch.points)} points ({n_stable} stable) of the "
+        f"{branch.period}-periodic branch in {branch.param}; stopped: {branch.stop_reason} -> {out}"
+    )
+    return 0 if branch.points else EXIT_RUN_FAILED
