@@ -48,6 +48,7 @@ BENCHMARKS = (
     Benchmark("basins_feng_yang", ("bench_basins.py", "--repeats", "3"), ANALYSES),
     Benchmark("lyapunov_feng_yang", ("study_lyapunov.py",), ANALYSES),
     Benchmark("basin_fates", ("verify_basin_fates.py",), ANALYSES),
+    Benchmark("continuation", ("bench_continuation.py", "--repeats", "5"), ANALYSES),
     Benchmark("cosim_wp", ("bench_cosim.py",), COSIM),
     Benchmark("stress", ("stress_cosim.py", "--long"), COSIM),
     Benchmark("isolation", ("bench_isolation.py",), COSIM),

@@ -27,7 +27,8 @@ _API = {
     "basins": "api",
     "lyapunov": "api",
     "control_study": "api",
-    "continuation": "api",
+    "continuation": "api_continuation",
+    "bifurcation_curve": "api_continuation",
     "scenarios": "api",
     "Scenario": "scenario",
     "ScenarioError": "scenario",
@@ -45,6 +46,7 @@ __all__ = [
     "lyapunov",
     "control_study",
     "continuation",
+    "bifurcation_curve",
     "scenarios",
     "Scenario",
     "ScenarioError",
@@ -56,7 +58,6 @@ if TYPE_CHECKING:
     from .api import (
         basins,
         check,
-        continuation,
         control_study,
         cosimulate,
         load,
@@ -65,6 +66,7 @@ if TYPE_CHECKING:
         simulate,
         sweep,
     )
+    from .api_continuation import bifurcation_curve, continuation
     from .results import CheckResult, SimulationResult
     from .scenario import Scenario, ScenarioError
 

@@ -6,7 +6,7 @@ import argparse
 from pathlib import Path
 from typing import Any
 
-from . import api
+from . import api, api_continuation
 from .cli_options import EXIT_RUN_FAILED, add_set_option
 from .scenario import ScenarioError
 from .writing import check_output_dir, write_directory
@@ -46,7 +46,15 @@ def add_parser(sub: Any, scenario_help: str) -> None:
         "--step", type=float, default=0.02, help="first arclength step, fraction of the range"
     )
     co.add_argument("--max-step", type=float, default=0.05, help="largest arclength step, fraction")
-    co.add_argument("--max-points", type=int, default=500, help="points at most")
+    co.add_argument("--max-points", type=int, default=500, help="points at most per branch")
+    co.add_argument(
+        "--doublings",
+        type=int,
+        default=0,
+        metavar="K",
+        help="switch at the first flip onto the period-doubled branch, K times: the "
+        "cascade's flips and their Feigenbaum ratios",
+    )
     co.add_argument(
         "--plot-state", default=None, metavar="NAME", help="state drawn (default: the first)"
     )
@@ -56,6 +64,17 @@ def add_parser(sub: Any, scenario_help: str) -> None:
         metavar="DIR",
         help="a `rubcosim sweep` output of the same parameter, drawn beneath the branch",
     )
+    co.add_argument(
+        "--curve",
+        choices=("fold", "flip"),
+        default=None,
+        help="then follow the branch's first such point in two parameters (--param2)",
+    )
+    co.add_argument("--param2", default=None, metavar="UNIT.PARAM", help="the second parameter")
+    co.add_argument(
+        "--from2", type=float, default=None, help="its start (default: the scenario's value)"
+    )
+    co.add_argument("--to2", type=float, default=None, help="the curve runs toward this value")
     co.add_argument("--no-progress", action="store_true", help="no progress bar")
 
 
@@ -68,12 +87,27 @@ def _start(text: str | None) -> list[float] | None:
         raise ScenarioError(f"--start {text!r}: expected numbers separated by commas") from None
 
 
+def _describe(sp: Any, param: str) -> str:
+    if sp.kind == "grazing":
+        law = sp.details.get("sqrt_law", {})
+        fit = f", square-root law exponent {law['exponent']:.3f}" if "exponent" in law else ""
+        where = "" if sp.details.get("located") else " (bracketed, not located)"
+        return f"grazing at {param} = {sp.param:.10g}{where}{fit}"
+    lam = sp.critical
+    return (
+        f"{sp.kind} at {param} = {sp.param:.10g} (critical multiplier "
+        f"{lam.real:+.6f}{lam.imag:+.6f}j, residual {sp.residual:.1e})"
+    )
+
+
 def cmd_continue(args: argparse.Namespace) -> int:
-    from .analysis.continuation_outputs import write_continuation
+    from .analysis.continuation_outputs import branches_of, write_continuation
     from .analysis.continue_scenario import settings_of
 
     scenario = api.load(args.scenario, args.set)
     out = check_output_dir(args.out)
+    if args.curve is not None and (args.param2 is None or args.to2 is None):
+        raise ScenarioError("--curve: give --param2 and --to2 (and --from2 if not the scenario's)")
     names = scenario.system.state_names
     plot_state = 0
     if args.plot_state is not None:
@@ -85,7 +119,7 @@ def cmd_continue(args: argparse.Namespace) -> int:
         sweep = Path(args.over_sweep) / "sweep.npz"
         if not sweep.is_file():
             raise ScenarioError(f"--over-sweep {args.over_sweep}: holds no sweep.npz")
-    branch = api.continuation(
+    branch = api_continuation.continuation(
         scenario,
         args.param,
         args.from_value,
@@ -97,22 +131,36 @@ def cmd_continue(args: argparse.Namespace) -> int:
         step=args.step,
         max_step=args.max_step,
         max_points=args.max_points,
+        doublings=args.doublings,
         progress=not args.no_progress,
     )
+    curve = None
+    if args.curve is not None:
+        curve = api_continuation.bifurcation_curve(
+            branch, args.curve, args.param2, args.to2, start2=args.from2,
+            max_points=args.max_points,
+        )  # fmt: skip
     settings = settings_of(
         branch, param=args.param, start=args.from_value, stop=args.to_value, rtol=args.rtol,
         step=args.step, max_step=args.max_step, max_points=args.max_points,
     )  # fmt: skip
-    write_directory(out, lambda tmp: write_continuation(branch, tmp, settings, plot_state, sweep))
-    for sp in branch.special:
-        lam = sp.critical
-        print(
-            f"{sp.kind} at {branch.param} = {sp.param:.10g} (critical multiplier "
-            f"{lam.real:+.6f}{lam.imag:+.6f}j, residual {sp.residual:.1e})"
-        )
-    n_stable = int(branch.stable.sum())
-    print(
-        f"{scenario.name}: {len(branch.points)} points ({n_stable} stable) of the "
-        f"{branch.period}-periodic branch in {branch.param}; stopped: {branch.stop_reason} -> {out}"
+    write_directory(
+        out, lambda tmp: write_continuation(branch, tmp, settings, plot_state, sweep, curve)
     )
+    for b in branches_of(branch):
+        for sp in b.special:
+            print(f"period {b.period}: {_describe(sp, branch.param)}")
+        print(
+            f"period {b.period}: {len(b.points)} points ({int(b.stable.sum())} stable); "
+            f"stopped: {b.stop_reason}"
+        )
+    if branch.cascade is not None and branch.cascade.ratios.size:
+        ratios = ", ".join(f"{r:.4g}" for r in branch.cascade.ratios)
+        print(f"period-doubling ratios {ratios} (Feigenbaum: 4.669)")
+    if curve is not None:
+        print(
+            f"{curve.kind} curve: {len(curve.points)} points, {curve.param2} from "
+            f"{curve.params2[0]:.6g} to {curve.params2[-1]:.6g}; stopped: {curve.stop_reason}"
+        )
+    print(f"{scenario.name}: continued in {branch.param} -> {out}")
     return 0 if branch.points else EXIT_RUN_FAILED

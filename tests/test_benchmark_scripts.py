@@ -98,3 +98,13 @@ def test_basins_benchmark_times_the_process_and_writes_its_table(tmp_path):
     assert len(data["wall_s"]) == 1 and data["wall_s"][0] > 0 and not data["met"]
     assert data["meta"]["git_commit"] and data["report"]["samples"]["total"] == 20 * 20 * 2
     assert "| P4 |" in (tmp_path / "basins_feng_yang_quick.md").read_text()
+
+
+def test_continuation_benchmark_writes_its_table(tmp_path):
+    import bench_continuation
+
+    assert bench_continuation.main(["--repeats", "1", "--out", str(tmp_path)]) == 0
+    data = json.loads((tmp_path / "continuation.json").read_text())
+    assert data["branch"]["points"] == 200 and data["flip_curve"]["points"] == 50
+    assert [k for k, _ in data["branch"]["special"]] == ["fold"]
+    assert "| impact Duffing" in (tmp_path / "continuation.md").read_text()

@@ -120,3 +120,167 @@ def test_the_command_writes_the_branch_table_report_and_figure(tmp_path):
         rows = list(csv.DictReader(f))
     assert len(rows) == report["points"] and PARAM in rows[0]
     assert (out / "branch.png").stat().st_size > 10_000
+
+
+def test_the_flip_curve_in_two_parameters_is_the_closed_forms(flip_branch):
+    """The flip followed in (w, r) from r = 0.8 to 0.4: at every point of the curve the
+    closed form's flip frequency for that r, to 1e-8."""
+    curve = rc.bifurcation_curve(flip_branch, "flip", "oscillator.restitution", 0.4)
+    assert curve.stop_reason == "reached the end of the range"
+    assert curve.params2[0] == 0.8 and curve.params2[-1] == pytest.approx(0.4, 1e-12)
+    for p in curve.points:
+        case = {**CASE, "r": p.param2}
+        w = brentq(lambda w, c=case: flip_test(w, d=0.0, **c), p.param - 0.05,
+                   p.param + 0.05, xtol=1e-14)  # fmt: skip
+        assert abs(p.param - w) < 1e-8
+        assert abs(np.min(np.abs(p.multipliers + 1.0))) < 1e-7
+
+
+def test_the_fold_curve_in_two_parameters_is_the_closed_forms(fold_branch):
+    """The fold followed in (w, d): the quadratic's discriminant is zero along it."""
+    curve = rc.bifurcation_curve(fold_branch, "fold", "oscillator.barrier", -0.4,
+                                 max_points=40)  # fmt: skip
+    assert len(curve.points) >= 10
+    for p in curve.points:
+        w = brentq(lambda w, d=p.param2: discriminant(w, d=d, **CASE), p.param - 0.02,
+                   p.param + 0.02, xtol=1e-14)  # fmt: skip
+        assert abs(p.param - w) < 1e-8
+
+
+def test_grazing_of_the_non_impacting_orbit_is_where_its_amplitude_is_the_gap():
+    """The non-impacting orbit x = R(w) cos(w t - psi) continued down in w toward its
+    stop at x = 0.5 grazes where R(w) = 0.5, with the square-root law there."""
+    sc = _scenario(0.5, 2.5)
+    branch = rc.continuation(sc, PARAM, 2.5, 1.5)
+    assert {p.impacts for p in branch.points} == {0}
+    assert branch.stop_reason.startswith("grazing")
+    (graze,) = branch.special_of("grazing")
+    exact = brentq(lambda w: 1.0 / math.hypot(1.0 - w * w, 0.1 * w) - 0.5, 1.6, 2.0,
+                   xtol=1e-15)  # fmt: skip
+    assert graze.details["located"] and abs(graze.param - exact) < 1e-8
+    assert abs(graze.details["sqrt_law"]["exponent"] - 0.5) < 0.05
+
+
+def test_branch_switching_follows_the_period_doubling_cascade_to_real_attractors():
+    """Switching at each first flip gives branches of periods 2, 4, 8; every branch's
+    most stable orbit is an attractor: the map iterated from it, perturbed by 1e-6,
+    comes back to it (a second method: direct integration, no Newton)."""
+    from rubcosim.analysis.maps import StroboscopicMap
+
+    sc = _scenario(0.0, 2.0)
+    branch = rc.continuation(sc, PARAM, 2.0, 3.0, doublings=3, max_points=150)
+    cascade = branch.cascade
+    assert [b.period for b in cascade.branches] == [1, 2, 4, 8]
+    mu = cascade.flip_params
+    assert len(mu) == 4 and np.all(np.diff(mu) > 0) and mu[0] == branch.special[0].param
+    for b in cascade.branches:
+        assert {p.impacts for p in b.points} == {b.period}  # one impact per period
+        p = min((q for q in b.points if q.stable), key=lambda q: q.spectral_radius)
+        system = sc.with_params({PARAM: p.param}).system
+        k = int(np.ceil(np.log(1e-10) / np.log(max(p.spectral_radius, 1e-3))))
+        orbit = StroboscopicMap(system, 1e-12).orbit(p.state + 1e-6, skip=b.period * k - 1)
+        assert np.max(np.abs(orbit.final_state - p.state)) < 1e-8
+        assert len(b.section_points) == len(b.points)
+        assert b.section_points[0].shape == (b.period, 2)
+
+
+@pytest.mark.parametrize(
+    ("name", "settings", "stop"),
+    [
+        ("impact_oscillator_linear", {"oscillator.damping": 0.1}, 2.6),
+        ("jeffcott_rigid_stator", {}, 340.0),
+    ],
+)
+def test_stable_orbits_of_a_branch_are_what_a_sweep_settles_onto(name, settings, stop):
+    """Brute force: a sweep (settling from the previous value's state, no Newton) over
+    some of the branch's parameter values ends on the branch's stable orbits, to 1e-8 of
+    the state scales: an impact oscillator's impacting orbit, and the Jeffcott rotor in
+    full annular rub on its rigid stator (sustained sliding contact at the section)."""
+    sc = rc.load(name, set=settings)
+    branch = rc.continuation(sc, *(("oscillator.forcing_frequency", 2.0) if "oscillator" in name
+                                   else ("rotor.speed", None)), stop)  # fmt: skip
+    stable = [p for p in branch.points if p.stable][:: max(1, len(branch.points) // 6)]
+    assert len(stable) >= 3
+    values = [p.param for p in stable]
+    if values[0] > values[-1]:
+        stable, values = stable[::-1], values[::-1]
+    result = rc.sweep(sc, branch.param, values, periods=2, discard=600, rtol=1e-12)
+    scale = sc.system.state_scale
+    for i, p in enumerate(stable):
+        settled = result.points["up"][i, -1]
+        assert np.max(np.abs(settled - p.state) / scale) < 1e-8, (name, p.param)
+
+
+def test_feng_yangs_saddles_sit_where_their_branches_meet_the_attractors_branches():
+    """Feng & Yang's case, from the paper's cells only (Figure 1, Table 1):
+
+    * Newton from the centre of S2's cell finds a saddle in that cell; its branch (the
+      symmetric non-impacting orbit) meets the branch of P2 at the two symmetry-breaking
+      points where P2's branch turns: both located, from the two branches, at the same
+      parameter and state; P2's branch, turned, comes back to the paper's w at P3;
+    * Newton from S1's cell finds an impacting saddle there; lowering w, it meets a fold
+      and comes back, through a flip, to the paper's w at a flip-unstable impacting
+      orbit inside the cells of the chaotic attractor P1;
+    * P4's impacting orbit meets a fold above the paper's w."""
+    from rubcosim.analysis.published import PUBLISHED, hsu_centre
+
+    paper = PUBLISHED["feng_yang_attractors"]
+    grid = paper["grid"]
+    width = np.array([(grid[3] - grid[2]) / grid[0], (grid[5] - grid[4]) / grid[1]])
+    centre = {k: hsu_centre(v[0], grid)[0] for k, v in paper["saddles"].items()}
+    centre.update({k: hsu_centre(v[0], grid)[0] for k, (v, _) in paper["attractors"].items()})
+    sc = rc.load("feng_yang_attractors")
+    w0 = sc.units["oscillator"]["forcing_frequency"]
+
+    def inside(state, name, cells=1.0):
+        return np.all(np.abs(state - centre[name]) <= cells * width)
+
+    s2 = rc.continuation(sc, PARAM, None, 0.55, y0=centre["S2"])
+    s2_up = rc.continuation(sc, PARAM, None, 0.85, y0=centre["S2"])
+    assert inside(s2.points[0].state, "S2") and s2.points[0].multipliers[0].real > 1.0
+    p2 = rc.continuation(sc, PARAM, None, 0.55, y0=centre["P2"])
+    p2_up = rc.continuation(sc, PARAM, None, 0.85, y0=centre["P2"])
+    assert inside(p2.points[0].state, "P2", 0.5) and p2.points[0].stable
+    for on_s2, on_p2 in ((s2, p2), (s2_up, p2_up)):
+        (bp,) = on_s2.special_of("branch-point")
+        fold = on_p2.special_of("fold")[-1]  # P2's own turn at the symmetry breaking
+        # two branches cross at a branch point: located less precisely than a fold
+        assert abs(bp.param - fold.param) < 1e-6
+        assert np.max(np.abs(bp.state - fold.state)) < 1e-4
+    assert p2_up.params[-1] == pytest.approx(w0, abs=1e-12)
+    assert inside(p2_up.points[-1].state, "P3", 0.5) and p2_up.points[-1].stable
+
+    s1 = rc.continuation(sc, PARAM, None, 0.55, y0=_saddle_in_cell(sc, centre["S1"], width))
+    first = s1.points[0]
+    assert inside(first.state, "S1") and first.impacts == 1 and first.multipliers[0].real > 1
+    kinds = [s.kind for s in s1.special]
+    assert kinds == ["fold", "flip"] and s1.special[0].param < w0
+    last = s1.points[-1]
+    assert last.param == pytest.approx(w0, abs=1e-12) and last.impacts == 1
+    assert last.multipliers[0].real < -1.0
+    p1_cells = hsu_centre(paper["attractors"]["P1"][0], grid)
+    assert np.min(np.max(np.abs(p1_cells - last.state) / width, axis=1)) <= 1.0
+
+    p4 = rc.continuation(sc, PARAM, None, 0.85, y0=centre["P4"])
+    assert inside(p4.points[0].state, "P4", 0.5) and p4.points[0].impacts == 1
+    assert [s.kind for s in p4.special] == ["fold"] and p4.special[0].param > w0
+    assert not p4.stable[-1]
+
+
+def _saddle_in_cell(sc, centre, width, n=5):
+    """A saddle found by Newton from a start in the cell of ``centre`` (an n x n grid of
+    starts; the cell is the paper's, the first start whose Newton ends in it wins)."""
+    problem = OrbitProblem(sc, PARAM)
+    w0 = problem.value()
+    offsets = (np.arange(n) + 0.5) / n - 0.5
+    for dx in offsets:
+        for dv in offsets:
+            start = centre + np.array([dx, dv]) * width
+            try:
+                y, lin, _ = problem.newton(start, w0)
+            except MapError:
+                continue
+            lam = np.linalg.eigvals(lin.monodromy)
+            if np.all(np.abs(y - centre) <= width) and np.max(np.abs(lam)) > 1.0:
+                return y
+    raise AssertionError(f"no saddle found by Newton in the cell of {centre}")

@@ -12,11 +12,16 @@ marks a special point, located by Brent's method on the arclength from the first
 * ``neimark-sacker``: ``prod_{i<j}(lambda_i lambda_j - 1)`` through zero with the pair
   at the zero complex (a pair through the unit circle); a real pair with product 1 (a
   neutral saddle) is not a bifurcation and is not reported.
+
+A branch point is where two branches cross: there the corrector's matrix is singular,
+so it is located less precisely than the others (to about 1e-7 of the parameter's range
+on Feng & Yang's symmetric orbit); a point whose location stopped short says so
+(``details["located"] = False``).
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -30,8 +35,9 @@ _COMPLEX = 1e-8  # a pair counts as complex above this imaginary part (relative)
 @dataclass(frozen=True)
 class SpecialPoint:
     """A special point located on a branch, between points ``index`` and ``index + 1``:
-    its ``kind`` (:data:`KINDS`), parameter, state on the section, multipliers (largest
-    modulus first), Newton's residual (state scales) and the critical multiplier."""
+    its ``kind`` (:data:`KINDS`, or ``"grazing"``), parameter, state on the section,
+    multipliers (largest modulus first), Newton's residual (state scales), the critical
+    multiplier, and ``details`` of its kind (a grazing's square-root law)."""
 
     kind: str
     index: int
@@ -40,6 +46,7 @@ class SpecialPoint:
     multipliers: np.ndarray
     residual: float
     critical: complex
+    details: dict[str, Any] = field(default_factory=dict)
 
     def report(self) -> dict[str, Any]:
         """JSON-able: kind, parameter, state, multipliers as [re, im], residual."""
@@ -51,6 +58,7 @@ class SpecialPoint:
             "multipliers": [[float(z.real), float(z.imag)] for z in self.multipliers],
             "critical_multiplier": [float(self.critical.real), float(self.critical.imag)],
             "residual": self.residual,
+            **self.details,
         }
 
 
@@ -103,19 +111,23 @@ def locate_between(
         point = _locate(cont, cur, t, s_end, k)
         if point is None:
             continue
-        pt, lam = point
+        pt, lam, located = point
         kind = KINDS[k]
         crit = _critical(kind, lam)
         if kind == "neimark-sacker" and abs(crit.imag) <= _COMPLEX * max(abs(crit), 1.0):
             continue  # a neutral saddle
         y, mu = cont._split(pt.u)
-        found.append(SpecialPoint(kind, index, mu, y, lam, pt.residual, crit))
+        details = {} if located else {"located": False}
+        found.append(SpecialPoint(kind, index, mu, y, lam, pt.residual, crit, details))
     return found
 
 
 def _locate(cont: Any, cur: Any, t: np.ndarray, s_end: float, k: int) -> Any:
-    """The corrected point where test ``k`` vanishes, and its multipliers; None when a
-    trial point does not converge."""
+    """The corrected point where test ``k`` vanishes, its multipliers, and whether it
+    was located to :data:`LOCATE_XTOL`.  Near a branch point the corrector's matrix is
+    singular and a trial point may not converge: then the converged trial point with the
+    smallest test value stands for it (not located).  None when the test has one sign
+    at the ends after all."""
     memo: dict[float, Any] = {}
 
     def at(s: float) -> Any:
@@ -125,19 +137,23 @@ def _locate(cont: Any, cur: Any, t: np.ndarray, s_end: float, k: int) -> Any:
                 raise _NoPointError
             lam = np.linalg.eigvals(pt.lin.monodromy)
             lam = lam[np.argsort(-np.abs(lam), kind="stable")]
-            tangent = cont.tangent(pt.lin, t)
-            memo[s] = (pt, lam, test_values(lam, cont._jacobian(pt.lin), tangent)[k])
+            tangent = cont.tangent(pt.jac, t)
+            memo[s] = (pt, lam, test_values(lam, pt.jac, tangent)[k])
         return memo[s]
 
     try:
         lo, hi = at(0.0)[2], at(s_end)[2]
-        if lo * hi > 0.0:
-            return None
-        s = brentq(lambda s: at(s)[2], 0.0, s_end, xtol=LOCATE_XTOL, rtol=4 * np.finfo(float).eps)
-        pt, lam, _ = at(s)
     except _NoPointError:
         return None
-    return pt, lam
+    if lo * hi > 0.0:
+        return None
+    try:
+        s = brentq(lambda s: at(s)[2], 0.0, s_end, xtol=LOCATE_XTOL, rtol=4 * np.finfo(float).eps)
+        pt, lam, _ = at(s)
+        return pt, lam, True
+    except _NoPointError:
+        best = min(memo.values(), key=lambda m: abs(m[2]))
+        return best[0], best[1], False
 
 
 class _NoPointError(Exception):

@@ -25,13 +25,17 @@ from typing import Any
 
 import numpy as np
 
+from rubcosim.scenario import ScenarioError
+
 from .bifurcation_points import SpecialPoint, locate_between, test_values
+from .branch_grazing import branch_grazing
 from .errors import AnalysisError, MapError
 from .orbit_problem import Linearization, OrbitProblem
 
 NEWTON_TOL = 1e-10  # |G| in state scales
 MAX_CORRECTOR = 8
 FAST, SLOW = 3, 6  # corrector iterations below which ds grows, above which it shrinks
+MIN_COS = 0.9  # the cosine of the largest turn of the tangent in one step
 
 
 @dataclass(frozen=True)
@@ -68,6 +72,10 @@ class Branch:
     points: list[BranchPoint] = field(default_factory=list)
     special: list[SpecialPoint] = field(default_factory=list)
     stop_reason: str = ""
+    # every point's n states on the section (P^k of its state, k < n), when filled
+    section_points: list[np.ndarray] = field(default_factory=list)
+    cascade: Any = None  # the period-doubling cascade from this branch, when asked
+    source: Any = field(default=None, repr=False)  # the Continuation that made it
 
     @property
     def params(self) -> np.ndarray:
@@ -98,11 +106,13 @@ class _Point:
     lin: Linearization
     iterations: int
     residual: float
+    jac: np.ndarray  # d(residual)/du, scaled: the rows of the corrector's matrix
 
 
 class Continuation:
     """Continue the orbit of ``problem`` through ``start`` (a state near the orbit at
-    ``mu0``) toward ``mu1``; see :func:`continue_orbit`."""
+    ``mu0``) toward ``mu1`` (``step``, ``max_step``, ``min_step``: arclength steps in
+    fractions of the range; ``locate_grazing``: locate where the branch stops at grazing)."""
 
     def __init__(
         self,
@@ -114,6 +124,7 @@ class Continuation:
         max_step: float = 0.05,
         min_step: float = 1e-7,
         max_points: int = 500,
+        locate_grazing: bool = True,
     ) -> None:
         if not (math.isfinite(mu0) and math.isfinite(mu1) and mu0 != mu1):
             raise AnalysisError("--from and --to: finite and different values")
@@ -129,6 +140,7 @@ class Continuation:
         self.scale = np.append(problem.scale, self.mu_scale)
         self.ds, self.max_step, self.min_step = step, max_step, min_step
         self.max_points = max_points
+        self.locate_grazing = locate_grazing
 
     # scaled unknowns <-> (y, mu)
     def _u(self, y: np.ndarray, mu: float) -> np.ndarray:
@@ -145,9 +157,16 @@ class Continuation:
         dmu = lin.d_param * self.mu_scale / s
         return np.column_stack((dy, dmu))
 
-    def tangent(self, lin: Linearization, previous: np.ndarray | None) -> np.ndarray:
-        """The unit tangent at a point; oriented along ``previous``, or toward ``mu1``."""
-        a = self._jacobian(lin)
+    def evaluate(self, u: np.ndarray) -> tuple[np.ndarray, np.ndarray, Linearization]:
+        """The residual (state scales), its derivative in the scaled unknowns, and the
+        linearization, at ``u``; raises MapError when the map fails."""
+        y, mu = self._split(u)
+        lin = self.problem.linearize(y, mu)
+        return lin.residual / self.problem.scale, self._jacobian(lin), lin
+
+    def tangent(self, a: np.ndarray, previous: np.ndarray | None) -> np.ndarray:
+        """The unit tangent at a point whose residual's derivative is ``a``; oriented
+        along ``previous``, or toward ``mu1``."""
         n = a.shape[0]
         if previous is None:
             row = np.zeros(n + 1)
@@ -167,24 +186,27 @@ class Continuation:
         not converge in :data:`MAX_CORRECTOR` iterations or the map fails."""
         u = u_pred.copy()
         for k in range(MAX_CORRECTOR + 1):
-            y, mu = self._split(u)
             try:
-                lin = self.problem.linearize(y, mu)
-            except (MapError, np.linalg.LinAlgError):
-                return None
-            g = lin.residual / self.problem.scale
+                g, jac, lin = self.evaluate(u)
+            except (MapError, ScenarioError, np.linalg.LinAlgError):
+                return None  # a map that fails, or an iterate out of a parameter's range
             res = float(np.max(np.abs(g)))
             if res < NEWTON_TOL:
-                return _Point(u, lin, k, res)
+                return _Point(u, lin, k, res, jac)
             if k == MAX_CORRECTOR or not math.isfinite(res):
                 return None
-            a = np.vstack((self._jacobian(lin), t))
+            a = np.vstack((jac, t))
             h = np.append(g, t @ (u - u_pred))
             try:
                 u = u - np.linalg.solve(a, h)
             except np.linalg.LinAlgError:
                 return None
         return None
+
+    def outside(self, u: np.ndarray) -> str:
+        """Why ``u`` leaves the region continued, other than the parameter's range
+        (empty: it does not)."""
+        return ""
 
     def _branch_point(self, pt: _Point) -> BranchPoint:
         y, mu = self._split(pt.u)
@@ -207,26 +229,55 @@ class Continuation:
         """The branch from ``start`` (refined by Newton at ``mu0``) until the parameter
         leaves the range, ``max_points`` points, or the step falls below ``min_step``."""
         pb = self.problem
-        branch = Branch(pb.scenario.name, pb.param, pb.period, pb.state_names)
         y0, lin, k = pb.newton(start, self.mu0, NEWTON_TOL)
         lin = pb.linearize(y0, self.mu0)
-        res = pb.scaled_residual(lin.residual)
-        cur = _Point(self._u(y0, self.mu0), lin, k, res)
+        cur = _Point(self._u(y0, self.mu0), lin, k, pb.scaled_residual(lin.residual),
+                     self._jacobian(lin))  # fmt: skip
+        branch = self.new_branch()
         if not lin.smooth:
             branch.points.append(self._branch_point(cur))
             branch.stop_reason = "the start is at grazing: nearby orbits change their impacts"
             return branch
-        t = self.tangent(lin, None)
+        return self.march(branch, cur, self.tangent(cur.jac, None), progress)
+
+    def new_branch(self) -> Branch:
+        pb = self.problem
+        return Branch(pb.scenario.name, pb.param, pb.period, pb.state_names, source=self)
+
+    def march(
+        self,
+        branch: Branch,
+        cur: _Point,
+        t: np.ndarray,
+        progress: Callable[[float], None] | None = None,
+    ) -> Branch:
+        """Add ``cur`` and the points after it along ``t`` to ``branch``."""
         branch.points.append(self._branch_point(cur))
-        tests = test_values(branch.points[-1].multipliers, self._jacobian(lin), t)
+        tests = test_values(branch.points[-1].multipliers, cur.jac, t)
         ds = self.ds
+        self.rejected: tuple[float, _Point | None] | None = None  # nearest failed step
         while len(branch.points) < self.max_points:
             nxt = self.correct(cur.u + ds * t, t)
             ok = nxt is not None and nxt.lin.smooth and nxt.lin.impacts == cur.lin.impacts
+            t_new = self.tangent(nxt.jac, t) if ok else t
+            outside = self.outside(nxt.u) if ok else ""
+            if outside:
+                branch.stop_reason = outside
+                break
+            # a corrector that lands farther from the prediction than the step, or a
+            # tangent that turns by more than ~25 degrees, may have jumped to another
+            # branch (P^n has the fixed points of every divisor's orbits): a shorter step
+            if ok and (np.linalg.norm(nxt.u - cur.u - ds * t) > ds or float(t_new @ t) < MIN_COS):
+                ok = False
             if not ok:
+                self.rejected = (self._split(cur.u + ds * t)[1], nxt)
                 ds *= 0.5
                 if ds < self.min_step:
                     branch.stop_reason = self._why_stopped(nxt, cur)
+                    if self.locate_grazing and branch.stop_reason.startswith("grazing"):
+                        found = branch_grazing(self, branch)
+                        if found is not None:
+                            branch.special.append(found)
                     break
                 continue
             _, mu = self._split(nxt.u)
@@ -234,13 +285,18 @@ class Continuation:
                 end = self._at_bound(cur, t, self.hi if mu > self.hi else self.lo)
                 if end is not None and end.lin.impacts == cur.lin.impacts:
                     self._accept(branch, cur, t, end, tests)
-                branch.stop_reason = "reached the end of the range"
-                break
-            t_new = self.tangent(nxt.lin, t)
+                    branch.stop_reason = "reached the end of the range"
+                    break
+                ds *= 0.5  # the bound's point did not converge from here: nearer first
+                if ds < self.min_step:
+                    branch.stop_reason = "reached the end of the range (its point did not converge)"
+                    break
+                continue
             tests = self._accept(branch, cur, t, nxt, tests, t_new)
             if progress is not None:
                 progress(mu)
             cur, t = nxt, t_new
+            self.rejected = None
             if nxt.iterations <= FAST:
                 ds = min(ds * 1.5, self.max_step)
             elif nxt.iterations >= SLOW:
@@ -261,8 +317,8 @@ class Continuation:
         """Add ``nxt`` to the branch, and the special points between ``cur`` and it;
         returns the test functions at ``nxt``."""
         point = self._branch_point(nxt)
-        t_new = self.tangent(nxt.lin, t) if t_new is None else t_new
-        new_tests = test_values(point.multipliers, self._jacobian(nxt.lin), t_new)
+        t_new = self.tangent(nxt.jac, t) if t_new is None else t_new
+        new_tests = test_values(point.multipliers, nxt.jac, t_new)
         index = len(branch.points) - 1
         for sp in locate_between(self, cur, t, nxt, tests, new_tests, index):
             branch.special.append(sp)
@@ -274,23 +330,14 @@ class Continuation:
             return f"the corrector failed with the step below --min-step {self.min_step:g}"
         _, mu = self._split(cur.u)
         if not nxt.lin.smooth or nxt.lin.impacts != cur.lin.impacts:
+            change = (
+                f"{cur.lin.impacts} -> {nxt.lin.impacts}"
+                if nxt.lin.impacts != cur.lin.impacts
+                else "in orbits nearby"
+            )
             return (
                 f"grazing near {self.problem.param} = {mu:.10g}: the impacts per "
-                f"{self.problem.period} period(s) change ({cur.lin.impacts} -> "
-                f"{nxt.lin.impacts}) and the map is not smooth there"
+                f"{self.problem.period} period(s) change ({change}) and the map is not "
+                "smooth there"
             )
         return "the step fell below --min-step"
-
-
-def continue_orbit(
-    problem: OrbitProblem,
-    start: np.ndarray,
-    mu0: float,
-    mu1: float,
-    progress: Callable[[float], None] | None = None,
-    **options: Any,
-) -> Branch:
-    """The branch of ``problem``'s n-periodic orbits from the orbit near ``start`` at
-    ``mu0`` toward ``mu1`` (options: ``step``, ``max_step``, ``min_step`` in fractions
-    of the range's length, ``max_points``); ``progress(mu)`` after every point."""
-    return Continuation(problem, mu0, mu1, **options).run(start, progress)

@@ -11,7 +11,8 @@ import numpy as np
 
 from rubcosim.scenario import Scenario, ScenarioError
 
-from .continuation import Branch, continue_orbit
+from .branch_switching import cascade
+from .continuation import Branch, Continuation
 from .errors import AnalysisError
 from .floquet import FLOQUET_RTOL
 from .orbit_problem import OrbitProblem, as_state, settled_start
@@ -33,6 +34,7 @@ def run_continuation(
     max_step: float = 0.05,
     min_step: float = 1e-7,
     max_points: int = 500,
+    doublings: int = 0,
     progress: bool = False,
 ) -> Branch:
     """See :func:`rubcosim.api.continuation`."""
@@ -47,28 +49,36 @@ def run_continuation(
     if mu0 == mu1:
         raise AnalysisError(f"--from and --to: both {mu0:g}; the range must not be empty")
     problem.mu_scale = abs(mu1 - mu0)
+    if not (isinstance(doublings, int) and doublings >= 0):
+        raise AnalysisError(f"--doublings {doublings!r}: must be an integer >= 0")
     if y0 is not None:
         y = as_state(problem, y0)
     else:
         if not (isinstance(settle, int) and settle >= 1):
             raise AnalysisError(f"--settle {settle!r}: must be an integer >= 1")
-        y = settled_start(problem, mu0, settle)
-    bar = _bar(progress, max_points, param)
+        y, problem.mode = settled_start(problem, mu0, settle)
+    cont = Continuation(
+        problem, mu0, mu1, step=step, max_step=max_step, min_step=min_step,
+        max_points=max_points,
+    )  # fmt: skip
+    bar = _bar(progress, max_points * (1 + doublings), param)
+    tick = None if bar is None else _ticker(bar, param)
     try:
-        return continue_orbit(
-            problem,
-            y,
-            mu0,
-            mu1,
-            progress=None if bar is None else _ticker(bar, param),
-            step=step,
-            max_step=max_step,
-            min_step=min_step,
-            max_points=max_points,
-        )
+        branch = cont.run(y, tick)
+        if doublings:
+            branch.cascade = cascade(cont, branch, doublings, tick)
     finally:
         if bar is not None:
             bar.close()
+    for b in branch.cascade.branches if branch.cascade else [branch]:
+        fill_section_points(b, problem.scenario, problem.rtol, problem.mode)
+    return branch
+
+
+def fill_section_points(branch: Branch, scenario: Scenario, rtol: float, mode: int) -> None:
+    """Every point's n states on the section (:meth:`OrbitProblem.section_orbit`)."""
+    problem = OrbitProblem(scenario, branch.param, branch.period, rtol=rtol, mode=mode)
+    branch.section_points = [problem.section_orbit(p.state, p.param) for p in branch.points]
 
 
 def _number(flag: str, value: Any) -> float:

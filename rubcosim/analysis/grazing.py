@@ -139,11 +139,17 @@ def _free_periodic_point(free: System, guess: np.ndarray | None) -> np.ndarray:
 
 
 def locate(
-    scenario: Scenario, param: str, lo: float, hi: float, xtol: float = 1e-10
+    scenario: Scenario,
+    param: str,
+    lo: float,
+    hi: float,
+    xtol: float = 1e-10,
+    guess: np.ndarray | None = None,
 ) -> tuple[float, np.ndarray, float]:
     """The parameter in ``[lo, hi]`` where the free period-1 orbit's minimum gap is
-    zero, to ``xtol`` relative; returns ``(value, state, normal velocity)``."""
-    cache: dict[float, np.ndarray] = {}
+    zero, to ``xtol`` relative; returns ``(value, state, normal velocity)``.  ``guess``:
+    a state near the free orbit at ``lo`` (default: where the free system settles)."""
+    cache: dict[float, np.ndarray] = {} if guess is None else {lo: np.asarray(guess)}
 
     def gap_at(mu: float) -> float:
         obstacle, free = _systems(scenario, param, mu)

@@ -32,6 +32,7 @@ from .lyapunov import monodromy
 from .maps import DEFAULT_MAX_EVENTS, StroboscopicMap
 
 MU_STEP = 1e-6  # central difference in the parameter, relative to its scale
+BACKTRACKS = 6  # halvings of a Newton step that does not lower the residual
 
 
 @dataclass(frozen=True)
@@ -123,6 +124,16 @@ class OrbitProblem:
             raise MapError(f"the map failed at {self.param} = {mu:.12g}: {orbit.message}")
         return orbit.final_state, int(orbit.impacts.sum())
 
+    def section_orbit(self, y: np.ndarray, mu: float) -> np.ndarray:
+        """The orbit's n states on the section: ``y, P(y), ..., P^(n-1)(y)``."""
+        if self.period == 1:
+            return np.asarray(y, dtype=float)[None, :]
+        smap = StroboscopicMap(self.system(mu), self.rtol, self.max_events)
+        orbit = smap.orbit(np.asarray(y, dtype=float), keep=self.period - 1, mode=self.mode)
+        if not orbit.ok:
+            raise MapError(f"the map failed at {self.param} = {mu:.12g}: {orbit.message}")
+        return np.vstack((y, orbit.points))
+
     def linearize(self, y: np.ndarray, mu: float, with_param: bool = True) -> Linearization:
         """``G`` and its derivatives at ``(y, mu)``; without ``with_param``, ``dG/dmu`` is
         not computed (zeros) and the orbit counts as smooth."""
@@ -155,19 +166,33 @@ class OrbitProblem:
     def newton(
         self, y: np.ndarray, mu: float, tol: float = 1e-10, max_iter: int = 20
     ) -> tuple[np.ndarray, Linearization, int]:
-        """The orbit at fixed ``mu`` nearest ``y`` by Newton's method: its state, its
-        linearization there and the iterations; a MapError says how far Newton got."""
+        """The orbit at fixed ``mu`` nearest ``y`` by Newton's method, damped: a step
+        that does not lower the residual is halved (up to :data:`BACKTRACKS` times), so
+        that a start a little away from a saddle does not leave for another orbit.
+        Returns its state, its linearization there and the iterations; a MapError says
+        how far Newton got."""
         y = np.array(y, dtype=float)
-        best = math.inf
+        lin = self.linearize(y, mu, with_param=False)
+        res = best = self.scaled_residual(lin.residual)
         for k in range(max_iter + 1):
-            lin = self.linearize(y, mu, with_param=False)
-            res = self.scaled_residual(lin.residual)
-            best = min(best, res)
             if res < tol:
                 return y, lin, k
             if k == max_iter:
                 break
-            y = y - np.linalg.solve(lin.d_state, lin.residual)
+            step = np.linalg.solve(lin.d_state, lin.residual)
+            for _ in range(BACKTRACKS + 1):
+                try:
+                    trial = self.linearize(y - step, mu, with_param=False)
+                    trial_res = self.scaled_residual(trial.residual)
+                except MapError:
+                    trial_res = math.inf
+                if trial_res < res:
+                    break
+                step = 0.5 * step
+            if not math.isfinite(trial_res):
+                break
+            y, lin, res = y - step, trial, trial_res
+            best = min(best, res)
         raise MapError(
             f"Newton did not converge to a {self.period}-periodic orbit at {self.param} = "
             f"{mu:.12g}: residual {res:.3g} state scales after {max_iter} iterations "
@@ -176,15 +201,16 @@ class OrbitProblem:
         )
 
 
-def settled_start(problem: OrbitProblem, mu: float, settle: int) -> np.ndarray:
+def settled_start(problem: OrbitProblem, mu: float, settle: int) -> tuple[np.ndarray, int]:
     """The state on the section after ``settle`` periods from the scenario's initial
-    state at ``mu``: a start on the attractor it settles onto."""
+    state at ``mu``, and the discrete mode there (a rotor in sustained contact is not in
+    free flight): a start on the attractor it settles onto."""
     system = problem.system(mu)
     smap = StroboscopicMap(system, problem.rtol, problem.max_events)
     orbit = smap.orbit(system.y0, skip=max(settle - 1, 0), keep=1, mode=system.mode0)
     if not orbit.ok:
         raise MapError(f"settling at {problem.param} = {mu:.12g} failed: {orbit.message}")
-    return orbit.final_state
+    return orbit.final_state, orbit.mode
 
 
 def as_state(problem: OrbitProblem, y: Any) -> np.ndarray:

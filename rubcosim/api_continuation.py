@@ -1,0 +1,87 @@
+"""The continuation part of the Python API (:mod:`rubcosim.api`'s conventions):
+periodic orbits followed in one parameter, special points followed in two."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any
+
+from .api import Params, ScenarioLike, _scenario
+
+
+def continuation(
+    scenario: ScenarioLike,
+    param: str,
+    start: float | None,
+    stop: float,
+    *,
+    period: int = 1,
+    y0: Sequence[float] | None = None,
+    settle: int = 300,
+    rtol: float | None = None,
+    step: float = 0.02,
+    max_step: float = 0.05,
+    max_points: int = 500,
+    doublings: int = 0,
+    set: Params = None,  # noqa: A002
+    progress: bool = False,
+) -> Any:
+    """Pseudo-arclength continuation (``rubcosim continue``) of the scenario's
+    ``period``-periodic orbit in ``param`` (``unit.name``) from ``start`` (default: its
+    value in the scenario) toward ``stop``.
+
+    The orbit is found by Newton on the stroboscopic map from ``y0`` (the state at
+    forcing phase 0), or from where the scenario's initial state settles after
+    ``settle`` periods; ``rtol`` is the map's tolerance (default 1e-12).  ``step`` and
+    ``max_step``: arclength steps in fractions of the range; ``max_points`` per branch.
+    ``doublings``: switch at the first flip onto the period-doubled branch, that many
+    times (``branch.cascade`` then holds the branches, the flips and their ratios).
+
+    Returns a ``Branch``: ``points`` (parameter, state, Floquet multipliers, impacts,
+    Newton's residual), ``special`` (located folds, branch points, flips,
+    Neimark-Sacker points and grazing) and ``stop_reason``.
+    """
+    from .analysis.continue_scenario import run_continuation
+
+    return run_continuation(
+        _scenario(scenario, set),
+        param,
+        start,
+        stop,
+        period=period,
+        y0=y0,
+        settle=settle,
+        rtol=rtol,
+        step=step,
+        max_step=max_step,
+        max_points=max_points,
+        doublings=doublings,
+        progress=progress,
+    )
+
+
+def bifurcation_curve(
+    branch: Any,
+    kind: str,
+    param2: str,
+    stop2: float,
+    *,
+    start2: float | None = None,
+    param_range: tuple[float, float] | None = None,
+    which: int = 0,
+    max_step: float | None = None,
+    max_points: int | None = None,
+) -> Any:
+    """Two-parameter continuation (``rubcosim continue --curve``): the curve of the
+    ``which``-th ``kind`` point (``"fold"`` or ``"flip"``) of ``branch`` (a result of
+    :func:`continuation`) in (the branch's parameter, ``param2``), from ``param2``'s
+    value in the scenario (or ``start2``) toward ``stop2``, the branch's parameter kept
+    in ``param_range`` (default: the branch's range).  ``max_step`` and ``max_points``
+    default to the branch's.  Returns a ``Curve``: its points
+    carry ``param``, ``param2``, the state and the multipliers."""
+    from .analysis.two_parameter import bifurcation_curve as follow
+
+    options = {k: v for k, v in (("max_step", max_step), ("max_points", max_points))
+               if v is not None}  # fmt: skip
+    return follow(branch, kind, param2, stop2, start2=start2, param_range=param_range,
+                  which=which, **options)  # fmt: skip
