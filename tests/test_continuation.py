@@ -284,3 +284,34 @@ def _saddle_in_cell(sc, centre, width, n=5):
             if np.all(np.abs(y - centre) <= width) and np.max(np.abs(lam)) > 1.0:
                 return y
     raise AssertionError(f"no saddle found by Newton in the cell of {centre}")
+
+
+def test_in_the_forcing_amplitude_p4_is_born_at_a_fold_and_p3_dies_grazing():
+    """Feng & Yang's case continued in f: P4 (one impact a period) is born at a fold
+    below the paper's f = 0.77 and P3 (no impact) grazes the stop above it; checked by
+    direct simulation on both sides of each (no Newton): just inside, the motion from
+    the branch's orbit settles onto an orbit of the branch's impacts; just outside, P4's
+    is gone (the motion leaves its impacting orbit) and P3's impacts."""
+    from rubcosim.analysis.maps import StroboscopicMap
+
+    sc = rc.load("feng_yang_attractors")
+    amp = "oscillator.forcing_amplitude"
+    p4 = rc.continuation(sc, amp, None, 0.3, y0=[0.9625, 0.33])
+    p3 = rc.continuation(sc, amp, None, 1.2, y0=[0.7675, 0.51])
+    (fold,) = p4.special_of("fold")
+    (graze,) = p3.special_of("grazing")
+    assert fold.param < 0.77 < graze.param and graze.details["located"]
+
+    def settles(f, y, periods=1500):
+        system = sc.with_params({amp: f}).system
+        orbit = StroboscopicMap(system, 1e-10).orbit(y, skip=periods, keep=20)
+        return orbit.points, orbit.impacts
+
+    pts, imp = settles(fold.param + 1e-3, fold.state)
+    assert np.all(imp == 1) and np.ptp(pts, axis=0).max() < 1e-6  # a 1-1 orbit
+    pts, imp = settles(fold.param - 1e-3, fold.state)
+    assert not (np.all(imp == 1) and np.ptp(pts, axis=0).max() < 1e-6)
+    pts, imp = settles(graze.param - 1e-3, graze.state)
+    assert np.all(imp == 0) and np.ptp(pts, axis=0).max() < 1e-6  # a 1-0 orbit
+    _, imp = settles(graze.param + 1e-3, graze.state, periods=50)
+    assert imp.sum() > 0
