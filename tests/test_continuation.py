@@ -315,3 +315,17 @@ def test_in_the_forcing_amplitude_p4_is_born_at_a_fold_and_p3_dies_grazing():
     assert np.all(imp == 0) and np.ptp(pts, axis=0).max() < 1e-6  # a 1-0 orbit
     _, imp = settles(graze.param + 1e-3, graze.state, periods=50)
     assert imp.sum() > 0
+
+
+def test_the_rotors_free_whirl_grazes_the_stator_at_the_rub_onset_speed():
+    """The Jeffcott rotor's unbalance whirl continued up in speed reaches the stator where
+    its radius e s^2 / sqrt((1 - s^2)^2 + (2 z s)^2) equals the clearance (the lower root
+    of rub_onset_speed_ratios' quadratic, solved here apart from it), to 1e-8."""
+    sc = rc.load("jeffcott_rigid_stator", set={"rotor.speed": 200.0})
+    branch = rc.continuation(sc, "rotor.speed", None, 300.0)
+    (graze,) = branch.special_of("grazing")
+    wn, z, rho = math.sqrt(1e6 / 10.0), 316.227766 / (2.0 * math.sqrt(1e6 * 10.0)), 0.5
+    s = brentq(lambda s: rho * s * s / math.hypot(1 - s * s, 2 * z * s) - 1.0, 0.5, 1.0,
+               xtol=1e-15)  # fmt: skip
+    assert graze.details["located"]
+    assert abs(graze.param - s * wn) < 1e-8 * s * wn

@@ -21,7 +21,7 @@ the length scale.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -122,10 +122,15 @@ class Grazing:
 
 
 def _systems(scenario: Scenario, param: str, value: float) -> tuple[System, System]:
-    """The system at ``param = value`` and the same without its obstacle."""
+    """The system at ``param = value`` and the same without its obstacle.  The free
+    system keeps the obstacle system's scales: a stator taken away by a huge clearance
+    would otherwise size every tolerance by that clearance (Newton's on the free orbit,
+    the engine's), far coarser than the gap being measured."""
     with_obstacle = scenario.with_params({param: float(value)})
-    free = with_obstacle.with_params(free_params(with_obstacle.system))
-    return with_obstacle.system, free.system
+    free = with_obstacle.with_params(free_params(with_obstacle.system)).system
+    obstacle = with_obstacle.system
+    free = replace(free, state_scale=obstacle.state_scale, velocity_scale=obstacle.velocity_scale)
+    return obstacle, free
 
 
 def _free_periodic_point(free: System, guess: np.ndarray | None) -> np.ndarray:
