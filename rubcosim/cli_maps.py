@@ -234,6 +234,7 @@ def cmd_basins(args: argparse.Namespace) -> int:
     )
     for line in basins_summary(basins, scenario.name):
         print(line)
+    print(_metrics_line(basins.metrics()))
     check = basins.info.get("fate_check")
     if check is not None:
         trusted = check["agree"] == check["checked"]
@@ -242,3 +243,14 @@ def cmd_basins(args: argparse.Namespace) -> int:
             file=None if trusted else sys.stderr,
         )
     return 0
+
+
+def _metrics_line(m: dict[str, Any]) -> str:
+    """One line of the basin metrics report.json holds (:mod:`.analysis.basin_metrics`)."""
+    e, w, b = m["basin_entropy"], m["wada"], m["boundary"]
+    fractal = "fractal by the ln 2 criterion" if e["ln2_criterion_fractal"] else "ln 2 silent"
+    alpha = b.get("uncertainty_exponent")
+    dim = f"boundary dimension {b['dimension']:.3f}, uncertainty exponent {alpha:.3f}" if (
+        alpha is not None) else "boundary dimension not fitted"  # fmt: skip
+    wada = "Wada" if w.get("wada") else "not Wada"
+    return f"basin entropy Sb {e['Sb']:.4f}, Sbb {e['Sbb']:.4f} ({fractal}); {dim}; {wada}"

@@ -198,6 +198,12 @@ class Basins:
     def n_attractors(self) -> int:
         return self.reach.shape[1]
 
+    def metrics(self, box: int = 5, wada_cells: float = 3.0) -> dict[str, Any]:
+        """Basin stability, entropy, boundary dimension, Wada test (:mod:`.basin_metrics`)."""
+        from .basin_metrics import metrics_of  # noqa: I001  (numpy only; loaded when asked)
+
+        return metrics_of(self, box, wada_cells)
+
     def counts(self) -> dict[str, Any]:
         return {
             "basins": [int(np.sum(self.labels == k)) for k in range(self.n_attractors)],

@@ -245,9 +245,20 @@ def _write_basins_report(
                 {"cells": s.tolist(), "centres": g.centres(s).tolist()} for s in basins.saddles
             ],
             **_pursuit_report(basins, scenario_name),
+            "metrics": _metrics(basins),
             **info,
         },
     )
+
+
+def _metrics(basins: Basins) -> dict[str, Any]:
+    """The basin metrics (:mod:`.basin_metrics`), or why they could not be computed."""
+    from .errors import AnalysisError
+
+    try:
+        return basins.metrics()
+    except AnalysisError as exc:
+        return {"error": str(exc)}
 
 
 def _pursuit_report(basins: Basins, scenario_name: str) -> dict[str, Any]:
