@@ -116,6 +116,19 @@ def _markdown(res: dict[str, Any]) -> str:
         f"| escape / sink | | | | {pub.get('escape_cells')} "
         f"| {100 * r['samples']['sink_fraction']:.2f} % |"
     )
+    met = r.get("metrics", {})
+    if "seconds" in met:
+        e, b = met["basin_entropy"], met["boundary"]
+        lines += [
+            "",
+            f"Basin metrics of the first timed run, computed in {met['seconds']:.2f} s "
+            f"({100 * met['seconds'] / walls[0]:.1f} % of that run's {walls[0]:.1f} s): "
+            f"Sb {e['Sb']:.4f}, Sbb {e['Sbb']:.4f} (ln 2 criterion: "
+            f"{'fractal' if e['ln2_criterion_fractal'] else 'silent'}), boundary dimension "
+            f"{b.get('dimension') or float('nan'):.3f}, uncertainty exponent "
+            f"{b.get('uncertainty_exponent') or float('nan'):.3f}, "
+            f"{'Wada' if met['wada'].get('wada') else 'not Wada'}.",
+        ]
     return "\n".join(lines) + "\n"
 
 

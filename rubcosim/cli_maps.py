@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import json
 import shutil
 import sys
 from typing import Any
@@ -234,7 +235,7 @@ def cmd_basins(args: argparse.Namespace) -> int:
     )
     for line in basins_summary(basins, scenario.name):
         print(line)
-    print(_metrics_line(basins.metrics()))
+    print(_metrics_line(json.loads((out / "report.json").read_text())["metrics"]))
     check = basins.info.get("fate_check")
     if check is not None:
         trusted = check["agree"] == check["checked"]
@@ -247,7 +248,11 @@ def cmd_basins(args: argparse.Namespace) -> int:
 
 def _metrics_line(m: dict[str, Any]) -> str:
     """One line of the basin metrics report.json holds (:mod:`.analysis.basin_metrics`)."""
+    if "error" in m:
+        return f"basin metrics: {m['error']}"
     e, w, b = m["basin_entropy"], m["wada"], m["boundary"]
+    if "error" in e:
+        return f"basin metrics: {e['error']}"
     fractal = "fractal by the ln 2 criterion" if e["ln2_criterion_fractal"] else "ln 2 silent"
     alpha = b.get("uncertainty_exponent")
     dim = f"boundary dimension {b['dimension']:.3f}, uncertainty exponent {alpha:.3f}" if (

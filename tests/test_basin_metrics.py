@@ -93,3 +93,9 @@ def test_a_basins_result_reports_its_metrics():
     assert m["from"] == "every sample's fate"
     assert sum(m["basin_stability"].values()) == pytest.approx(1.0)
     assert set(m) >= {"basin_entropy", "boundary", "wada"}
+
+
+def test_a_grid_smaller_than_a_box_still_gets_its_other_metrics():
+    m = basin_metrics(np.array([[0, 1], [1, 2]]))
+    assert "larger than the grid" in m["basin_entropy"]["error"]
+    assert "error" in m["boundary"] and m["basin_stability"]["1"] == 0.5

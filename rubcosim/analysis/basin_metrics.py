@@ -158,19 +158,22 @@ def basin_metrics(
     n_out = int(per.max()) + 1
     shares = np.bincount(per.ravel(), minlength=n_out) / per.size
     labels = names or [str(k) for k in range(n_out)]
-    sb, sbb, boxes, mixed = box_entropy(per, box)
     metrics: dict[str, Any] = {
         "basin_stability": {labels[k]: float(shares[k]) for k in range(n_out)},
-        "basin_entropy": {
+        "wada": wada_merging(outcomes, wada_cells),
+    }
+    try:
+        sb, sbb, boxes, mixed = box_entropy(per, box)
+        metrics["basin_entropy"] = {
             "Sb": sb,
             "Sbb": sbb,
             "box_cells": box,
             "boxes": boxes,
             "boundary_boxes": mixed,
             "ln2_criterion_fractal": bool(sbb > math.log(2.0)),
-        },
-        "wada": wada_merging(outcomes, wada_cells),
-    }
+        }
+    except AnalysisError as exc:  # a grid smaller than a box
+        metrics["basin_entropy"] = {"error": str(exc)}
     try:
         metrics["boundary"] = boundary_dimension(outcomes)
     except AnalysisError as exc:

@@ -253,12 +253,16 @@ def _write_basins_report(
 
 def _metrics(basins: Basins) -> dict[str, Any]:
     """The basin metrics (:mod:`.basin_metrics`), or why they could not be computed."""
+    import time
+
     from .errors import AnalysisError
 
+    start = time.perf_counter()
     try:
-        return basins.metrics()
+        found = basins.metrics()
     except AnalysisError as exc:
         return {"error": str(exc)}
+    return {**found, "seconds": time.perf_counter() - start}
 
 
 def _pursuit_report(basins: Basins, scenario_name: str) -> dict[str, Any]:
