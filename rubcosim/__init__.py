@@ -29,6 +29,7 @@ _API = {
     "control_study": "api",
     "continuation": "api_continuation",
     "bifurcation_curve": "api_continuation",
+    "basin_continuation": "api_continuation",
     "scenarios": "api",
     "Scenario": "scenario",
     "ScenarioError": "scenario",
@@ -47,6 +48,7 @@ __all__ = [
     "control_study",
     "continuation",
     "bifurcation_curve",
+    "basin_continuation",
     "scenarios",
     "Scenario",
     "ScenarioError",
@@ -66,7 +68,7 @@ if TYPE_CHECKING:
         simulate,
         sweep,
     )
-    from .api_continuation import bifurcation_curve, continuation
+    from .api_continuation import basin_continuation, bifurcation_curve, continuation
     from .results import CheckResult, SimulationResult
     from .scenario import Scenario, ScenarioError
 

@@ -4,6 +4,7 @@ periodic orbits followed in one parameter, special points followed in two."""
 from __future__ import annotations
 
 from collections.abc import Sequence
+from pathlib import Path
 from typing import Any
 
 from .api import Params, ScenarioLike, _scenario
@@ -85,3 +86,47 @@ def bifurcation_curve(
                if v is not None}  # fmt: skip
     return follow(branch, kind, param2, stop2, start2=start2, param_range=param_range,
                   which=which, **options)  # fmt: skip
+
+
+def basin_continuation(
+    scenario: ScenarioLike,
+    param: str,
+    values: Sequence[float],
+    grid: tuple[int, int] | str | None = None,
+    samples: int | None = None,
+    region: tuple[float, float, float, float] | str | None = None,
+    *,
+    method: str | None = None,
+    seed: int | None = None,
+    rtol: float | None = None,
+    check: int | None = None,
+    workers: int | None = None,
+    scheduler: str | None = None,
+    checkpoint_dir: str | Path | None = None,
+    set: Params = None,  # noqa: A002
+    progress: bool = False,
+) -> Any:
+    """Basin fractions continued over ``param`` (``rubcosim basins --continue``): the
+    basins at every value of ``values`` as :func:`rubcosim.api.basins` computes them
+    (the same settings), the attractors matched from one value to the next by their
+    distance on the section, then by the overlap of their basins, and where they are
+    born, die or merge (:mod:`rubcosim.analysis.basin_continuation`).  Each value is
+    kept in ``checkpoint_dir`` as it is done.  Returns a ``BasinContinuation``
+    (``.fractions``, ``.events``, ``.report()``)."""
+    import numpy as np
+
+    from .analysis.basin_continuation import continue_basins
+    from .api import basins
+
+    sc = _scenario(scenario, set)
+    vals = np.asarray(values, dtype=float)
+    for v in (vals.min(), vals.max()):
+        sc.with_params({param: float(v)})  # a value out of the parameter's range: named
+
+    def run(value: float) -> Any:
+        return basins(sc.with_params({param: value}), grid, samples, region, method=method,
+                      seed=seed, rtol=rtol, check=check, workers=workers,
+                      scheduler=scheduler, progress=progress)  # fmt: skip
+
+    ckpt = None if checkpoint_dir is None else Path(checkpoint_dir)
+    return continue_basins(run, param, vals, np.asarray(sc.system.state_scale), ckpt)

@@ -116,6 +116,14 @@ def add_parsers(sub: Any, scenario_help: str) -> None:
         "any delay-free system; default: the scenario's basins.method",
     )
     bs.add_argument(
+        "--continue",
+        dest="continue_range",
+        default=None,
+        metavar="UNIT.PARAM=START:STOP:COUNT",
+        help="basin fractions continued over a parameter: the basins at every value, the "
+        "attractors matched from one value to the next, where they are born, die or merge",
+    )
+    bs.add_argument(
         "--check",
         type=int,
         default=None,
@@ -219,6 +227,8 @@ def cmd_basins(args: argparse.Namespace) -> int:
         raise AnalysisError(f"--method {opts['method']!r}: one of {', '.join(BASIN_METHODS)}")
     out = check_output_dir(args.out)
     ckpt = checkpoint_dir(out)
+    if args.continue_range is not None:
+        return _continue_basins(args, scenario, opts, out, ckpt)
     # the figure's helper process: forked now, before the analysis starts its workers
     with FigureProcess() as figures:
         basins = _run_basins(args, scenario, opts, ckpt)
@@ -259,3 +269,31 @@ def _metrics_line(m: dict[str, Any]) -> str:
         alpha is not None) else "boundary dimension not fitted"  # fmt: skip
     wada = "Wada" if w.get("wada") else "not Wada"
     return f"basin entropy Sb {e['Sb']:.4f}, Sbb {e['Sbb']:.4f} ({fractal}); {dim}; {wada}"
+
+
+def _continue_basins(args: argparse.Namespace, scenario: Any, opts: dict[str, Any], out: Any,
+                     ckpt: Any) -> int:  # fmt: skip
+    """``rubcosim basins --continue``: :func:`rubcosim.api_continuation.basin_continuation`."""
+    from . import api_continuation
+    from .analysis.basin_continuation import write_basin_continuation
+    from .analysis.sweep import parse_param
+
+    param = parse_param(args.continue_range)
+    result = api_continuation.basin_continuation(
+        scenario, param.name, param.values, opts["grid"], opts["samples"], opts["region"],
+        method=opts["method"], seed=opts["seed"], rtol=args.rtol, check=args.check,
+        workers=args.workers, scheduler=args.scheduler, checkpoint_dir=ckpt,
+    )  # fmt: skip
+    write_directory(out, lambda tmp: write_basin_continuation(result, tmp, scenario.name))
+    shutil.rmtree(ckpt, ignore_errors=True)
+    for e in result.events:
+        if e["event"] != "present":
+            into = f" into A{e['into']}" if "into" in e else ""
+            print(f"{param.name} = {e['value']:.6g}: A{e['attractor']} {e['event']}{into}")
+    rep = result.report()
+    print(
+        f"{scenario.name}: basins at {param.count} values of {param.name}, "
+        f"{result.n_ids} attractor(s) in all; {rep['fates_agreeing']} of "
+        f"{rep['fates_checked']} sampled fates confirmed by direct simulation -> {out}"
+    )
+    return 0
