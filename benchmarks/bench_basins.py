@@ -170,7 +170,9 @@ def main(argv: list[str] | None = None) -> int:
         "all_on_the_papers_cells": found_all,
         "met": bool(median <= TARGET_S and found_all and not args.quick),
         "report": {
-            k: report[k] for k in ("pursuit", "counts", "samples", "published") if k in report
+            k: report[k]
+            for k in ("pursuit", "counts", "samples", "published", "metrics")
+            if k in report
         },
     }
     args.out.mkdir(parents=True, exist_ok=True)
