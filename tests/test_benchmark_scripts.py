@@ -103,7 +103,8 @@ def test_basins_benchmark_times_the_process_and_writes_its_table(tmp_path):
 def test_continuation_benchmark_writes_its_table(tmp_path):
     import bench_continuation
 
-    assert bench_continuation.main(["--repeats", "1", "--out", str(tmp_path)]) == 0
+    args = ["--repeats", "1", "--basin-repeats", "0", "--out", str(tmp_path)]
+    assert bench_continuation.main(args) == 0
     data = json.loads((tmp_path / "continuation.json").read_text())
     assert data["branch"]["points"] == 200 and data["flip_curve"]["points"] == 50
     assert [k for k, _ in data["branch"]["special"]] == ["fold"]
