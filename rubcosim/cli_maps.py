@@ -296,4 +296,16 @@ def _continue_basins(args: argparse.Namespace, scenario: Any, opts: dict[str, An
         f"{result.n_ids} attractor(s) in all; {rep['fates_agreeing']} of "
         f"{rep['fates_checked']} sampled fates confirmed by direct simulation -> {out}"
     )
+    doubtful = [
+        f"{v['value']:.6g} ({v['fate_check']['agree']}/{v['fate_check']['checked']})"
+        for v in rep["per_value"]
+        if v["fate_check"] and v["fate_check"]["agree"] < v["fate_check"]["checked"]
+    ]
+    if doubtful:
+        print(
+            f"rubcosim: warning: at {len(doubtful)} value(s) direct simulation sends some "
+            f"sampled fates elsewhere: {', '.join(doubtful)}; a finer grid or more samples "
+            "per cell (report.json: per_value)",
+            file=sys.stderr,
+        )
     return 0
