@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import json
 from pathlib import Path
 from typing import Any
 
@@ -38,6 +39,20 @@ def add_parser(sub: Any, scenario_help: str) -> None:
         metavar="Y1,Y2,...",
         help="the orbit's state at forcing phase 0, near enough for Newton (default: where "
         "the initial state settles after --settle periods)",
+    )
+    co.add_argument(
+        "--start-from",
+        default=None,
+        metavar="DIR",
+        help="start from a fixed point (by default the first saddle) of a `rubcosim basins` "
+        "output directory, e.g. a saddle on a basin boundary",
+    )
+    co.add_argument(
+        "--fixed-point",
+        type=int,
+        default=None,
+        metavar="K",
+        help="with --start-from: the K-th of its report's fixed_points (0-based)",
     )
     co.add_argument("--settle", type=int, default=300, help="periods settled before Newton")
     co.add_argument("--out", required=True, help="output directory")
@@ -100,12 +115,34 @@ def _describe(sp: Any, param: str) -> str:
     )
 
 
+def _fixed_point(folder: str, k: int | None) -> list[float]:
+    """The state of fixed point ``k`` (default: the first saddle) of a basins report."""
+    path = Path(folder) / "report.json"
+    try:
+        points = json.loads(path.read_text())["fixed_points"]
+    except (OSError, ValueError, KeyError):
+        raise ScenarioError(
+            f"--start-from {folder}: holds no basins report with fixed points"
+        ) from None
+    if k is None:
+        k = next((i for i, p in enumerate(points) if p.get("saddle")), None)
+        if k is None:
+            raise ScenarioError(f"--start-from {folder}: its report has no saddle")
+    if not (0 <= k < len(points)):
+        raise ScenarioError(f"--fixed-point {k}: the report has {len(points)} fixed points")
+    return [float(v) for v in points[k]["state"]]
+
+
 def cmd_continue(args: argparse.Namespace) -> int:
     from .analysis.continuation_outputs import branches_of, write_continuation
     from .analysis.continue_scenario import settings_of
 
     scenario = api.load(args.scenario, args.set)
     out = check_output_dir(args.out)
+    if args.start_from is not None and args.start_state is not None:
+        raise ScenarioError("--start and --start-from: give one of them")
+    if args.fixed_point is not None and args.start_from is None:
+        raise ScenarioError("--fixed-point: goes with --start-from")
     if args.curve is not None and (args.param2 is None or args.to2 is None):
         raise ScenarioError("--curve: give --param2 and --to2 (and --from2 if not the scenario's)")
     names = scenario.system.state_names
@@ -125,7 +162,9 @@ def cmd_continue(args: argparse.Namespace) -> int:
         args.from_value,
         args.to_value,
         period=args.period,
-        y0=_start(args.start_state),
+        y0=_fixed_point(args.start_from, args.fixed_point)
+        if args.start_from is not None
+        else _start(args.start_state),
         settle=args.settle,
         rtol=args.rtol,
         step=args.step,

@@ -329,3 +329,23 @@ def test_the_rotors_free_whirl_grazes_the_stator_at_the_rub_onset_speed():
                xtol=1e-15)  # fmt: skip
     assert graze.details["located"]
     assert abs(graze.param - s * wn) < 1e-8 * s * wn
+
+
+def test_a_branch_starts_from_a_saddle_a_basins_run_found(tmp_path):
+    """`--start-from` a basins output: its first saddle (Feng & Yang's S2 on a coarse
+    grid) starts the branch; a bad folder or index is one error naming the flag."""
+    basins_out = tmp_path / "basins"
+    assert main(["basins", "feng_yang_attractors", "--grid", "40x40", "--samples", "2",
+                 "--check", "0", "--out", str(basins_out), "--no-progress"]) == 0  # fmt: skip
+    report = json.loads((basins_out / "report.json").read_text())
+    saddle = next(p for p in report["fixed_points"] if p["saddle"])
+    out = tmp_path / "branch"
+    args = ["continue", "feng_yang_attractors", "--param", PARAM, "--to", "0.7"]
+    assert main([*args, "--start-from", str(basins_out), "--out", str(out)]) == 0
+    with open(out / "branch.csv") as f:
+        first = next(csv.DictReader(f))
+    state = [float(first[n]) for n in ("oscillator.x", "oscillator.v")]
+    assert np.max(np.abs(np.array(state) - saddle["state"])) < 1e-8
+    assert main([*args, "--start-from", str(tmp_path), "--out", str(tmp_path / "x")]) == 2
+    bad = ["--start-from", str(basins_out), "--fixed-point", "99", "--out", str(tmp_path / "y")]
+    assert main([*args, *bad]) == 2
