@@ -349,3 +349,20 @@ def test_a_branch_starts_from_a_saddle_a_basins_run_found(tmp_path):
     assert main([*args, "--start-from", str(tmp_path), "--out", str(tmp_path / "x")]) == 2
     bad = ["--start-from", str(basins_out), "--fixed-point", "99", "--out", str(tmp_path / "y")]
     assert main([*args, *bad]) == 2
+
+
+def test_grazing_of_an_elastic_stop_follows_the_three_halves_law():
+    """The same non-impacting orbit against an elastic stop (k_s = 100 at x = 0.5): it
+    grazes where R(w) = 0.5, as for the rigid stop, and the map's deviation grows as the
+    penetration depth to the power 3/2 (the force is continuous, its derivative jumps)."""
+    sc = rc.load("impact_oscillator_linear", set={
+        "oscillator.damping": 0.1, "oscillator.barrier": 0.5, PARAM: 2.5,
+        "oscillator.stop": "elastic_one_sided", "oscillator.stop_stiffness": 100.0,
+    })  # fmt: skip
+    branch = rc.continuation(sc, PARAM, 2.5, 1.5)
+    (graze,) = branch.special_of("grazing")
+    exact = brentq(lambda w: 1.0 / math.hypot(1.0 - w * w, 0.1 * w) - 0.5, 1.6, 2.0,
+                   xtol=1e-15)  # fmt: skip
+    assert graze.details["located"] and abs(graze.param - exact) < 1e-8
+    law = graze.details["sqrt_law"]
+    assert law["expected"] == 1.5 and abs(law["exponent"] - 1.5) < 0.05

@@ -17,7 +17,7 @@ import numpy as np
 
 from .bifurcation_points import SpecialPoint
 from .errors import AnalysisError
-from .grazing import locate, sqrt_law
+from .grazing import expected_exponent, locate, sqrt_law
 from .orbit_problem import MU_STEP
 
 WIDEN = 8  # times the bracket is doubled when the free orbit's gap keeps its sign
@@ -51,7 +51,7 @@ def branch_grazing(cont: Any, branch: Any) -> SpecialPoint | None:
                     "depths": depths.tolist(),
                     "deviations": devs.tolist(),
                     "exponent": slope,
-                    "expected": 0.5,
+                    "expected": expected_exponent(problem.system(value)),
                 }
             except AnalysisError as exc:
                 details["sqrt_law"] = {"error": str(exc)}

@@ -188,9 +188,11 @@ def map_many(
 
 @nb.njit(cache=True)
 def obstacle_gaps(Y, mode, p, model, gap, rate):
-    """For each state row: the smallest event function among the rigid-obstacle slots
-    (those that fire on a decrease through zero: the gaps) in ``mode``, and its rate
-    (``NaN`` without a rate slot); ``inf`` when there is no obstacle."""
+    """For each state row: the smallest event function among the obstacle slots in
+    ``mode`` (the gaps: a rigid obstacle's fires on a decrease through zero; an elastic
+    stop's, where only the force's law changes, either way, and has a rate slot, unlike a
+    breakpoint in time), and its rate (``NaN`` without a rate slot); ``inf`` when there is
+    no obstacle."""
     g = np.empty(S.N_EVENTS)
     dirs = np.empty(S.N_EVENTS, dtype=np.int64)
     rates = np.empty(S.N_EVENTS, dtype=np.int64)
@@ -200,6 +202,6 @@ def obstacle_gaps(Y, mode, p, model, gap, rate):
         gap[j] = np.inf
         rate[j] = np.nan
         for k in range(S.N_EVENTS):
-            if dirs[k] == -1 and g[k] < gap[j]:
+            if (dirs[k] == -1 or (dirs[k] == 2 and rates[k] >= 0)) and g[k] < gap[j]:
                 gap[j] = g[k]
                 rate[j] = g[rates[k]] if rates[k] >= 0 else np.nan
