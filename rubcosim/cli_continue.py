@@ -8,7 +8,7 @@ from pathlib import Path
 from typing import Any
 
 from . import api, api_continuation
-from .cli_options import EXIT_RUN_FAILED, add_set_option
+from .cli_options import EXIT_RUN_FAILED, add_set_option, plot_state_index
 from .scenario import ScenarioError
 from .writing import check_output_dir, write_directory
 
@@ -145,12 +145,7 @@ def cmd_continue(args: argparse.Namespace) -> int:
         raise ScenarioError("--fixed-point: goes with --start-from")
     if args.curve is not None and (args.param2 is None or args.to2 is None):
         raise ScenarioError("--curve: give --param2 and --to2 (and --from2 if not the scenario's)")
-    names = scenario.system.state_names
-    plot_state = 0
-    if args.plot_state is not None:
-        if args.plot_state not in names:
-            raise ScenarioError(f"--plot-state {args.plot_state!r}: not one of {', '.join(names)}")
-        plot_state = names.index(args.plot_state)
+    plot_state = plot_state_index(scenario.system.state_names, args.plot_state)
     sweep = None
     if args.over_sweep is not None:
         sweep = Path(args.over_sweep) / "sweep.npz"

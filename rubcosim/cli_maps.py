@@ -12,8 +12,7 @@ from . import api
 from .analysis.errors import AnalysisError
 from .analysis.sweep import DIRECTIONS
 from .basinsettings import BASIN_METHODS
-from .cli_options import EXIT_RUN_FAILED, add_set_option
-from .scenario import ScenarioError
+from .cli_options import EXIT_RUN_FAILED, add_set_option, plot_state_index
 from .writing import check_output_dir, write_directory
 
 
@@ -146,12 +145,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     scenario = api.load(args.scenario, args.set)
     param = parse_param(args.param)
     out = check_output_dir(args.out)
-    names = scenario.system.state_names
-    plot_state = 0
-    if args.plot_state is not None:
-        if args.plot_state not in names:
-            raise ScenarioError(f"--plot-state {args.plot_state!r}: not one of {', '.join(names)}")
-        plot_state = names.index(args.plot_state)
+    plot_state = plot_state_index(scenario.system.state_names, args.plot_state)
     ckpt = checkpoint_dir(out)
     result = api.sweep(
         scenario,

@@ -18,3 +18,14 @@ def add_set_option(parser: argparse.ArgumentParser, what: str) -> None:
         metavar="UNIT.PARAM=VALUE",
         help=f"override {what} (repeatable)",
     )
+
+
+def plot_state_index(names: list[str], given: str | None) -> int:
+    """The index of ``--plot-state`` among the state ``names`` (default: the first)."""
+    from .scenario import ScenarioError
+
+    if given is None:
+        return 0
+    if given not in names:
+        raise ScenarioError(f"--plot-state {given!r}: not one of {', '.join(names)}")
+    return names.index(given)

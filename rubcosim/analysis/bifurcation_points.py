@@ -27,6 +27,8 @@ from typing import Any
 import numpy as np
 from scipy.optimize import brentq
 
+from .floquet import multipliers_of
+
 KINDS = ("fold", "branch-point", "flip", "neimark-sacker")
 LOCATE_XTOL = 1e-12  # scaled arclength
 _COMPLEX = 1e-8  # a pair counts as complex above this imaginary part (relative)
@@ -135,8 +137,7 @@ def _locate(cont: Any, cur: Any, t: np.ndarray, s_end: float, k: int) -> Any:
             pt = cont.correct(cur.u + s * t, t)
             if pt is None:
                 raise _NoPointError
-            lam = np.linalg.eigvals(pt.lin.monodromy)
-            lam = lam[np.argsort(-np.abs(lam), kind="stable")]
+            lam = multipliers_of(pt.lin.monodromy)
             tangent = cont.tangent(pt.jac, t)
             memo[s] = (pt, lam, test_values(lam, pt.jac, tangent)[k])
         return memo[s]

@@ -41,6 +41,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from .basin_metrics import metrics_of
 from .errors import AnalysisError, MapError
 from .maps import StroboscopicMap, admissible
 from .motion import classify
@@ -200,8 +201,6 @@ class Basins:
 
     def metrics(self, box: int = 5, wada_cells: float = 3.0) -> dict[str, Any]:
         """Basin stability, entropy, boundary dimension, Wada test (:mod:`.basin_metrics`)."""
-        from .basin_metrics import metrics_of  # noqa: I001  (numpy only; loaded when asked)
-
         return metrics_of(self, box, wada_cells)
 
     def counts(self) -> dict[str, Any]:

@@ -30,6 +30,7 @@ from rubcosim.scenario import ScenarioError
 from .bifurcation_points import SpecialPoint, locate_between, test_values
 from .branch_grazing import branch_grazing
 from .errors import AnalysisError, MapError
+from .floquet import multipliers_of
 from .orbit_problem import Linearization, OrbitProblem
 
 NEWTON_TOL = 1e-10  # |G| in state scales
@@ -210,8 +211,7 @@ class Continuation:
 
     def _branch_point(self, pt: _Point) -> BranchPoint:
         y, mu = self._split(pt.u)
-        lam = np.linalg.eigvals(pt.lin.monodromy)
-        lam = lam[np.argsort(-np.abs(lam), kind="stable")]
+        lam = multipliers_of(pt.lin.monodromy)
         return BranchPoint(mu, y, lam, pt.lin.impacts, pt.residual, pt.iterations)
 
     def _at_bound(self, prev: _Point, t: np.ndarray, bound: float) -> _Point | None:

@@ -122,9 +122,14 @@ def floquet(
         if box is not None and not np.all((box[0] <= y) & (y <= box[1])):
             raise MapError(f"Newton left the box {box[0]} .. {box[1]} at {y}")
     J, m = jacobian(smap, y, period, m0)
-    mult = np.linalg.eigvals(J)
-    mult = mult[np.argsort(-np.abs(mult))]
-    return Floquet(mult, J, y, period, m, residual)
+    return Floquet(multipliers_of(J), J, y, period, m, residual)
+
+
+def multipliers_of(monodromy: np.ndarray) -> np.ndarray:
+    """The Floquet multipliers (the monodromy matrix's eigenvalues), largest modulus
+    first (ties in their eigvals order)."""
+    lam = np.linalg.eigvals(monodromy)
+    return lam[np.argsort(-np.abs(lam), kind="stable")]
 
 
 def floquet_report(f: Floquet) -> dict:

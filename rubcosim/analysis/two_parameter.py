@@ -26,6 +26,7 @@ from rubcosim.scenario import ScenarioError
 from .bifurcation_points import SpecialPoint
 from .continuation import Branch, BranchPoint, Continuation, _Point
 from .errors import AnalysisError, MapError
+from .floquet import multipliers_of
 from .orbit_problem import MU_STEP, Linearization, OrbitProblem
 
 CURVE_KINDS = ("fold", "flip")
@@ -159,8 +160,7 @@ class CurveContinuation(Continuation):
 
     def _branch_point(self, pt: _Point) -> CurvePoint:
         z = pt.u * self.scale
-        lam = np.linalg.eigvals(pt.lin.monodromy)
-        lam = lam[np.argsort(-np.abs(lam), kind="stable")]
+        lam = multipliers_of(pt.lin.monodromy)
         return CurvePoint(float(z[-2]), z[:-2], lam, pt.lin.impacts, pt.residual,
                           pt.iterations, float(z[-1]))  # fmt: skip
 
